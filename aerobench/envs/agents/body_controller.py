@@ -1,0 +1,165 @@
+"""ManiSkill controller that flies the airframe (and drives the arm) with the pure torch controller.
+
+At every physics step (240 Hz) it reads the six virtual joints, runs `flight_step`, and applies the rotor wrench as
+joint efforts Q = J^T W; on the arm platform it adds the arm servo torques and the arm weight-moment feedforward.
+Its action is `[u_x, u_y, u_z, u_psi]` (+ three arm-joint targets) in [-1, 1]; the gripper is a separate ManiSkill
+PD mimic controller combined after it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import torch
+from gymnasium import spaces
+from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
+
+from ..control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
+from ..control.flight import FlightMemory, FlightOutput, FlightParams, flight_step
+from ..control.payload import ControllerMode, update_payload_estimate
+from ..control.virtual_joints import (
+    NUM_VIRTUAL_JOINTS,
+    AirframeState,
+    airframe_state_from_joints,
+    joint_efforts_from_wrench,
+)
+from ..platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PlatformSpec
+
+
+class AerialBodyController(BaseController):
+    config: AerialBodyControllerConfig
+    sets_target_qpos = False
+    sets_target_qvel = False
+
+    def __init__(self, config, articulation, control_freq, sim_freq=None, scene=None):
+        super().__init__(config, articulation, control_freq, sim_freq=sim_freq, scene=scene)
+        platform = config.platform
+        n = self.scene.num_envs
+        self.params = FlightParams.from_platform(platform, self.device)
+        self.mode = ControllerMode.parse(config.mode) if isinstance(config.mode, str) else config.mode
+        self.memory = FlightMemory.initial(n, self.params, self.device)
+        self.arm = ArmParams.from_spec(platform.arm, platform.gripper, self.device) if platform.arm else None
+        self.velocity_cmd = torch.zeros(n, 3, device=self.device)
+        self.yaw_rate_cmd = torch.zeros(n, device=self.device)
+        working = platform.arm.working_pose_rad if platform.arm else ()
+        self.arm_target = torch.tensor(working, dtype=torch.float32, device=self.device).expand(n, len(working)).clone()
+        self.contact_mode = torch.zeros(n, dtype=torch.bool, device=self.device)
+        self._needs_yaw_sync = torch.ones(n, dtype=torch.bool, device=self.device)
+        self.last_output: FlightOutput | None = None
+        self.last_state: AirframeState | None = None
+        self.telemetry: list[dict[str, torch.Tensor]] | None = None  # set to [] to record every physics step
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # ManiSkill controller interface
+    # ----------------------------------------------------------------------------------------------------------------
+    def _initialize_action_space(self):
+        dim = 4 + (len(self.config.platform.arm.joints) if self.config.platform.arm else 0)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(dim,), dtype=np.float32)
+
+    def set_drive_property(self):
+        # Effort-driven joints: no PhysX drive, no joint friction. Forces come only from `before_simulation_step`.
+        for joint in self.joints:
+            joint.set_drive_properties(0.0, 0.0, force_limit=0.0)
+            joint.set_friction(0.0)
+
+    def reset(self):
+        """Called by ManiSkill after `_initialize_episode`; heading sync for reset envs happens at the next step."""
+        self.velocity_cmd.zero_()
+        self.yaw_rate_cmd.zero_()
+
+    def begin_reset(self, mask: torch.Tensor) -> None:
+        """Unloaded controller, zero integrators, working arm pose and no contact mode for the envs in `mask`."""
+        self.memory.reset(mask, self.params)
+        self._needs_yaw_sync |= mask
+        self.contact_mode &= ~mask
+        if self.arm is not None:
+            working = torch.tensor(self.config.platform.arm.working_pose_rad, device=self.device)
+            self.arm_target[mask] = working
+
+    def arm_action(self, q_arm: torch.Tensor) -> torch.Tensor:
+        """The normalized arm action that commands joint targets `q_arm` (inverse of the mapping in `set_action`)."""
+        return 2.0 * (q_arm - self.arm.lower) / (self.arm.upper - self.arm.lower) - 1.0
+
+    def set_action(self, action: torch.Tensor):
+        action = self._preprocess_action(action)
+        action = torch.clamp(action, -1.0, 1.0)
+        self.velocity_cmd = action[:, :3] * MAX_SPEED_MPS
+        self.yaw_rate_cmd = action[:, 3] * MAX_YAW_RATE_RPS
+        if self.arm is not None:
+            self.arm_target = self.arm.lower + 0.5 * (action[:, 4:7] + 1.0) * (self.arm.upper - self.arm.lower)
+
+    def before_simulation_step(self):
+        px = self.scene.px
+        if self.scene.gpu_sim_enabled:  # ManiSkill fetches once per control step; the loop needs every physics step
+            px.gpu_fetch_articulation_qpos()
+            px.gpu_fetch_articulation_qvel()
+        q_all, qd_all = self.articulation.get_qpos(), self.articulation.get_qvel()
+        idx = self.active_joint_indices
+        q, qd = q_all[:, idx[:NUM_VIRTUAL_JOINTS]], qd_all[:, idx[:NUM_VIRTUAL_JOINTS]]
+        state = airframe_state_from_joints(q, qd)
+        if self._needs_yaw_sync.any():
+            self.memory.yaw_des = torch.where(self._needs_yaw_sync, state.yaw, self.memory.yaw_des)
+            self._needs_yaw_sync[:] = False
+
+        feedforward = None
+        efforts = [None]
+        if self.arm is not None:
+            q_arm, qd_arm = q_all[:, idx[NUM_VIRTUAL_JOINTS:]], qd_all[:, idx[NUM_VIRTUAL_JOINTS:]]
+            feedforward = arm_weight_feedforward_body(state.rotation, q_arm, self.arm, self.params.gravity)
+            feedforward = torch.where(self.contact_mode[:, None], torch.zeros_like(feedforward), feedforward)
+            efforts.append(arm_servo_torques(q_arm, qd_arm, self.arm_target, self.arm, self.contact_mode))
+
+        out, self.memory = flight_step(state, self.velocity_cmd, self.yaw_rate_cmd, self.memory, self.params, feedforward)
+        efforts[0] = joint_efforts_from_wrench(q, out.force_world, out.torque_world)
+        qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
+        qf[:, idx] = torch.cat(efforts, dim=-1).to(qf.dtype)
+        self.articulation.set_qf(qf)
+        if self.scene.gpu_sim_enabled:
+            px.gpu_apply_articulation_qf()
+        self.last_output, self.last_state = out, state
+        if self.telemetry is not None:
+            self.telemetry.append(
+                {
+                    "position": state.position.clone(),
+                    "velocity": state.velocity.clone(),
+                    "tilt_cos": state.rotation[:, 2, 2].clone(),
+                    "yaw_rate": (state.rotation[:, 2, :] * state.angular_velocity_body).sum(-1),
+                    "xi": self.memory.xi.clone(),
+                    "rotor_thrusts": out.rotor_thrusts.clone(),
+                    "mass_hat": self.memory.mass_hat.clone(),
+                }
+            )
+
+    def get_state(self) -> dict:
+        m = self.memory
+        return {"xi": m.xi, "yaw_des": m.yaw_des[:, None], "mass_hat": m.mass_hat[:, None]}
+
+    def set_state(self, state: dict):
+        if state:
+            self.memory = replace(
+                self.memory, xi=state["xi"], yaw_des=state["yaw_des"][:, 0], mass_hat=state["mass_hat"][:, 0]
+            )
+            self._needs_yaw_sync[:] = False
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # Signals from the task (once per control step)
+    # ----------------------------------------------------------------------------------------------------------------
+    def update_payload(self, is_grasped: torch.Tensor, is_set_down: torch.Tensor, object_mass: torch.Tensor) -> None:
+        """Payload-aware switches for this control step (no-op on m_hat and gains for the nominal controller)."""
+        self.memory = update_payload_estimate(self.memory, self.params, is_grasped, is_set_down, object_mass, self.mode)
+
+    def set_contact_mode(self, pinched: torch.Tensor) -> None:
+        """Arm platform: limp shoulder and no arm feedforward while pinched; on release the integrator resets."""
+        released = self.contact_mode & ~pinched
+        if released.any():
+            self.memory.xi = torch.where(released[:, None], torch.zeros_like(self.memory.xi), self.memory.xi)
+        self.contact_mode = pinched.clone()
+
+
+@dataclass
+class AerialBodyControllerConfig(ControllerConfig):
+    platform: PlatformSpec = None
+    mode: str = ControllerMode.PAYLOAD_AWARE.value
+    joint_names: list[str] = field(default_factory=list)
+    controller_cls = AerialBodyController

@@ -1,0 +1,51 @@
+"""`AerialEnv`: the ManiSkill base class every aerobench env derives from.
+
+It owns what all tasks share: the platform agent (`platform="gripper" | "arm"`), the controller variant
+(`controller="payload-aware" | "nominal"`), the spec's 240 Hz physics / 20 Hz control, and the once-per-control-step
+hand-off of payload signals to the flight controller. Tasks fill the usual ManiSkill hooks.
+"""
+
+from __future__ import annotations
+
+import sapien
+import torch
+from mani_skill.envs.sapien_env import BaseEnv
+from mani_skill.utils.structs.types import SimConfig
+
+from .agents import AGENT_UIDS, AerialAgent
+from .control.payload import ControllerMode
+from .platforms import CONTROL_HZ, PHYSICS_HZ, get_platform
+
+
+class AerialEnv(BaseEnv):
+    """Base of aerobench envs. Args (besides ManiSkill's): `platform`, `controller`."""
+
+    SUPPORTED_ROBOTS = list(AGENT_UIDS.values())
+    agent: AerialAgent
+
+    def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware", **kwargs):
+        self.platform = get_platform(platform)
+        self.controller_mode = ControllerMode.parse(controller)
+        if "control_mode" in kwargs and kwargs["control_mode"] is not None:
+            raise ValueError("aerobench envs choose their controller with controller='payload-aware'|'nominal'")
+        kwargs["control_mode"] = self.controller_mode.value.replace("-", "_")
+        super().__init__(*args, robot_uids=AGENT_UIDS[self.platform.name], **kwargs)
+
+    @property
+    def _default_sim_config(self) -> SimConfig:
+        return SimConfig(sim_freq=PHYSICS_HZ, control_freq=CONTROL_HZ, spacing=20.0)
+
+    def _load_agent(self, options: dict, initial_agent_poses=None, build_separate: bool = False):
+        super()._load_agent(options, sapien.Pose(), build_separate)
+
+    def payload_signals(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+        """(is_grasped, is_set_down, object_mass) for the carried object, `(N,)` each; None when there is no object.
+
+        `is_set_down` must flag only the placement support carrying the object (see `control.payload`).
+        """
+        return None
+
+    def _before_control_step(self):
+        signals = self.payload_signals()
+        if signals is not None:
+            self.agent.body_controller.update_payload(*signals)

@@ -1,0 +1,1 @@
+"""Procedural scenes (built from primitives, seeded, offline). `room`: the flight-test room."""

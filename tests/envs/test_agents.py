@@ -1,0 +1,72 @@
+"""The two platforms as ManiSkill agents on physx_cpu: mass, geometry, cameras, actions, bad input."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+import aerobench.envs  # noqa: F401
+from aerobench.envs.agents import NonFiniteActionError
+from aerobench.envs.agents.airframe import VIRTUAL_LINK_NAMES
+from aerobench.envs.flight_test import articulated_mass_properties
+
+
+@pytest.fixture(scope="module", params=["gripper", "arm"])
+def env(request):
+    env = gym.make("AeroFly-v1", obs_mode="state", scene="empty", platform=request.param)
+    env.reset(seed=0)
+    yield env.unwrapped
+    env.close()
+
+
+def test_articulated_mass_is_m0_and_virtual_links_are_negligible(env):
+    mass, _, inertia = articulated_mass_properties(env.agent)
+    assert abs(mass - env.platform.total_mass_kg) < 1e-4
+    virtual = sum(float(link._objs[0].mass) for link in env.agent.robot.links if link.name in VIRTUAL_LINK_NAMES)
+    assert virtual / mass < 5e-4
+    assert np.all(np.linalg.eigvalsh(inertia) > 0.02)  # X500 inertia (0.0217 / 0.04) plus the manipulator
+
+
+def test_six_virtual_joints_then_manipulator_joints(env):
+    names = list(env.agent.robot.active_joints_map)
+    assert names[:6] == ["root_x", "root_y", "root_z", "root_yaw", "root_pitch", "root_roll"]
+    expected = ["shoulder_pitch", "elbow_pitch", "wrist_roll"] if env.platform.arm else []
+    assert names[6:] == expected + ["finger_left", "finger_right"]
+    assert env.action_space.shape == (env.platform.action_dim,)
+
+
+def test_grasp_point_where_the_spec_puts_it(env):
+    state = env.agent.airframe_state()
+    offset = env.agent.tcp_pose.p[0] - state.position[0]
+    expected = torch.tensor(env.platform.grasp_point_m)
+    # the arm sags a few millimetres under its own weight from the ideal working pose
+    assert torch.allclose(offset, expected, atol=0.012), offset
+
+
+def test_rotor_disks_are_collision_shapes(env):
+    airframe = env.agent.airframe_link._objs[0]
+    disks = [s for s in airframe.collision_shapes if type(s).__name__ == "PhysxCollisionShapeCylinder"]
+    assert len(disks) == 4
+    assert all(math.isclose(s.radius, 0.147, abs_tol=1e-6) for s in disks)
+    centres = sorted((round(float(s.local_pose.p[0]), 3), round(float(s.local_pose.p[1]), 3)) for s in disks)
+    assert centres == [(-0.174, -0.174), (-0.174, 0.174), (0.174, -0.174), (0.174, 0.174)]
+
+
+def test_non_finite_action_names_the_env(env):
+    action = np.zeros(env.platform.action_dim, dtype=np.float32)
+    action[2] = np.nan
+    with pytest.raises(NonFiniteActionError, match=r"env index 0"):
+        env.step(action)
+
+
+def test_three_onboard_rgbd_cameras():
+    env = gym.make("AeroFly-v1", obs_mode="rgbd", scene="room", platform="gripper")
+    obs, _ = env.reset(seed=0)
+    cams = obs["sensor_data"]
+    assert set(cams) == {"drone_front", "drone_hand", "drone_own"}
+    for cam in cams.values():
+        assert cam["rgb"].shape == (1, 128, 128, 3) and cam["depth"].shape == (1, 128, 128, 1)
+        assert cam["rgb"].float().std() > 1.0  # the room is visible, not a blank image
+    env.close()

@@ -1,0 +1,24 @@
+"""physx_cuda: many airframes hover together (skipped with a reason on CPU-only machines)."""
+
+import gymnasium as gym
+import pytest
+import torch
+
+import aerobench.envs  # noqa: F401
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_batched_gpu_hover(platform):
+    env = gym.make("AeroFly-v1", obs_mode="state", scene="empty", platform=platform, sim_backend="physx_cuda", num_envs=64)
+    env.reset(seed=0)
+    base = env.unwrapped
+    action = torch.zeros(64, base.platform.action_dim, device=base.device)
+    if base.platform.arm is not None:
+        action[:, 4:7] = base.agent.body_controller.arm_action(torch.tensor(base.platform.arm.working_pose_rad, device=base.device))
+    start = base.agent.airframe_state().position.clone()
+    for _ in range(100):
+        env.step(action)
+    drift = (base.agent.airframe_state().position - start).norm(dim=-1)
+    assert drift.max() < 0.01
+    env.close()

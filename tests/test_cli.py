@@ -1,0 +1,44 @@
+"""`aerobench fly` from the shell: one-line errors, JSON output, video and plot files."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+CLI = [sys.executable, "-m", "aerobench.cli"]
+
+
+def _run(*args, timeout=300):
+    env = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout, env=env)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--platform", "hexa"], "aerobench fly: error: unknown platform 'hexa'; valid platforms: gripper, arm"),
+        (["--scenario", "loop"], "aerobench fly: error: unknown scenario 'loop'; valid scenarios: hover, step, square, payload, reference"),
+        (["--controller", "pid"], "aerobench fly: error: unknown controller 'pid'; valid controllers: payload-aware, nominal"),
+        (["--seconds", "-3"], "aerobench fly: error: --seconds must be a positive number, got -3.0"),
+        (["--seconds", "nan"], "aerobench fly: error: --seconds must be a positive number, got nan"),
+        (["--payload-kg", "9"], "aerobench fly: error: --payload-kg must be between 0 and 1.5 kg, got 9.0"),
+        (["--seconds", "abc"], "aerobench fly: error: argument --seconds: invalid float value: 'abc'"),
+    ],
+)
+def test_bad_input_is_one_line(args, message):
+    r = _run("fly", *args)
+    assert r.returncode == 2
+    assert r.stderr.strip() == message
+    assert "Traceback" not in r.stderr
+
+
+def test_hover_json_video_and_plot(tmp_path):
+    video, plot = tmp_path / "hover.mp4", tmp_path / "hover.png"
+    r = _run("fly", "--platform", "gripper", "--scenario", "hover", "--seconds", "1", "--json", "--video", str(video), "--plot", str(plot))
+    assert r.returncode == 0, r.stderr
+    metrics = json.loads(r.stdout.strip().splitlines()[-1])
+    assert {"max_drift_m", "max_tilt_deg"} <= set(metrics)
+    assert metrics["scenario"] == "hover" and metrics["seconds"] == pytest.approx(1.0)
+    assert video.stat().st_size > 1000 and plot.stat().st_size > 1000
