@@ -98,6 +98,40 @@ def _run_demo(args) -> int:
     return 0
 
 
+AERO_ENV_IDS = ("AeroPick-v1", "AeroPlace-v1", "AeroNav-v1", "AeroOpen-v1", "AeroClose-v1", "AeroSequential-v1", "AeroFly-v1")
+
+
+def _add_render(sub) -> None:
+    p = sub.add_parser("render", help="picture of an env: the three onboard RGB-D views beside a third-person view")
+    p.add_argument("--env", default="AeroPick-v1", help=f"one of: {', '.join(AERO_ENV_IDS)}")
+    p.add_argument("--setting", default=None, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
+    p.add_argument("--object", default=None, help="one of the setting's objects (default: sampled)")
+    p.add_argument("--platform", default=None, help="gripper or arm (default: the skill's)")
+    p.add_argument("--chain", default=None, help="AeroSequential-v1 only: the setting's chain")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, help="PNG file to write")
+    p.set_defaults(func=_run_render)
+
+
+def _run_render(args) -> int:
+    import imageio.v2 as imageio
+
+    from .envs.views import render_env
+
+    if args.env not in AERO_ENV_IDS:
+        raise UserError(f"unknown env {args.env!r}; valid envs: {', '.join(AERO_ENV_IDS)}")
+    kwargs = {k: v for k, v in (("setting", args.setting), ("object", args.object), ("platform", args.platform), ("chain", args.chain)) if v}
+    try:
+        picture = render_env(args.env, seed=args.seed, **kwargs)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    imageio.imwrite(out, picture)
+    print(f"wrote {out} ({picture.shape[1]}x{picture.shape[0]})")
+    return 0
+
+
 def _print_metrics(metrics: dict, as_json: bool) -> None:
     width = max(len(k) for k in metrics)
     for key, value in metrics.items():
@@ -113,6 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_fly(sub)
     _add_demo(sub)
+    _add_render(sub)
     return parser
 
 

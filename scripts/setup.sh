@@ -33,11 +33,11 @@ if [ ! -x "$VENV/bin/python" ]; then
     "$PY" -m venv "$VENV"
 fi
 
-want=$(cat pyproject.toml requirements/lock.txt | sha256sum | cut -d' ' -f1)
+want=$(cat pyproject.toml plugins/lerobot_env_aerobench/pyproject.toml requirements/lock.txt | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$STAMP" 2>/dev/null)" != "$want" ]; then
     echo "setup: installing pinned packages into $VENV (a few minutes the first time)"
     log="$VENV/pip-install.log"
-    if ! { "$VENV/bin/python" -m pip install --upgrade pip && "$VENV/bin/python" -m pip install -c requirements/lock.txt -e ".[test]"; } >"$log" 2>&1; then
+    if ! { "$VENV/bin/python" -m pip install --upgrade pip && "$VENV/bin/python" -m pip install -c requirements/lock.txt -e ".[test]" -e plugins/lerobot_env_aerobench; } >"$log" 2>&1; then
         tail -n 30 "$log" >&2
         echo "setup: error: pip install failed (full log: $log)" >&2
         exit 1

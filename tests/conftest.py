@@ -1,12 +1,15 @@
 """Shared test set-up: offline, quiet, caches in a temp dir; GPU tests skip with a reason where there is no GPU."""
 
+import atexit
 import logging
 import os
+import shutil
 import tempfile
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
 _cache = tempfile.mkdtemp(prefix="aerobench-test-cache-")
+atexit.register(shutil.rmtree, _cache, ignore_errors=True)
 os.environ.setdefault("XDG_CACHE_HOME", _cache)
 os.environ.setdefault("MPLCONFIGDIR", os.path.join(_cache, "matplotlib"))
 os.environ.setdefault("HF_HOME", os.path.join(_cache, "huggingface"))

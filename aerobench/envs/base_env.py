@@ -45,6 +45,10 @@ class AerialEnv(BaseEnv):
         """
         return None
 
+    def get_instruction(self, env: int = 0) -> str:
+        """The language instruction of env `env` (task envs override this)."""
+        return ""
+
     def _before_control_step(self):
         signals = self.payload_signals()
         if signals is not None:

@@ -3,7 +3,12 @@
 Sources: dimensions from the YCB object set (Calli et al., 2015, object table; rounded to mm). Masses follow the spec
 where it constrains them (appendix "Payload-Aware Flight Control"): the three filled cans (master chef, tomato soup,
 potted meat) weigh 0.37-0.40 kg and the tomato can 0.37 kg; sugar, pudding and gelatin boxes are empty (at most
-0.04 kg); the others keep their YCB mass. Grasping is by contact only: nothing is ever attached or teleported.
+0.04 kg); the others keep their YCB mass. The delivery package (PackageDelivery) is a slim parcel sized for the
+110 mm gripper. Grasping is by contact only: nothing is ever attached or teleported.
+
+Object frame: origin at the bottom centre, z up. The grasp frame (`grasp_point_m`, fingers closing along the object
+x axis) is where the tool centre point sits in a planned grasp: boxes across their narrow side (x), cylinders
+across the diameter, the bowl by its rim wall (one finger inside, one outside).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from mani_skill.utils.structs import Actor
 
 Shape = Literal["cylinder", "box", "bowl"]
 OBJECT_FRICTION = 0.6  # printed cardboard / painted tin against the finger pads (PhysX averages the two)
+GRASP_MIN_HEIGHT_M = 0.025
 
 
 @dataclass(frozen=True)
@@ -36,6 +42,25 @@ class ObjectSpec:
     @property
     def height_m(self) -> float:
         return self.size_m[1] if self.shape in ("cylinder", "bowl") else self.size_m[2]
+
+    @property
+    def grasp_point_m(self) -> tuple[float, float, float]:
+        """Tool centre point of a planned grasp in the object frame (fingers close along object x).
+
+        Half height, but at least 25 mm above the support so the finger tips (20 mm below the TCP) stay clear of it;
+        the bowl is pinched 15 mm below its rim, on the wall at +x.
+        """
+        if self.shape == "bowl":
+            diameter, height, wall = self.size_m
+            return (diameter / 2 - wall / 2, 0.0, height - 0.015)
+        return (0.0, 0.0, max(self.height_m / 2, GRASP_MIN_HEIGHT_M))
+
+    @property
+    def footprint_radius_m(self) -> float:
+        """Radius of the smallest vertical cylinder around the object (for placing it on supports)."""
+        if self.shape == "box":
+            return math.hypot(self.size_m[0], self.size_m[1]) / 2
+        return self.size_m[0] / 2
 
     @property
     def grasp_width_m(self) -> float:
@@ -65,11 +90,15 @@ OBJECTS: Mapping[str, ObjectSpec] = MappingProxyType(
 )
 
 
+PACKAGE = ObjectSpec("package", "box", (0.080, 0.200, 0.120), 0.30, (0.72, 0.55, 0.35), "delivery parcel (nominal)")
+ALL_OBJECTS: Mapping[str, ObjectSpec] = MappingProxyType({**OBJECTS, PACKAGE.name: PACKAGE})
+
+
 def get_object(name: str) -> ObjectSpec:
     try:
-        return OBJECTS[name]
+        return ALL_OBJECTS[name]
     except KeyError:
-        raise ValueError(f"unknown object {name!r}; valid objects: {', '.join(OBJECTS)}") from None
+        raise ValueError(f"unknown object {name!r}; valid objects: {', '.join(ALL_OBJECTS)}") from None
 
 
 def _inertia(spec: ObjectSpec) -> list[float]:
@@ -83,9 +112,20 @@ def _inertia(spec: ObjectSpec) -> list[float]:
     return [m * (r * r / 2 + h * h / 3), m * (r * r / 2 + h * h / 3), m * r * r]  # thin-walled bowl
 
 
-def build_object(scene: ManiSkillScene, spec: ObjectSpec, name: str, initial_pose: sapien.Pose | None = None) -> Actor:
-    """A dynamic actor whose origin is at the bottom centre of the object (so it rests at z = 0 on a support)."""
+def build_object(
+    scene: ManiSkillScene,
+    spec: ObjectSpec,
+    name: str,
+    initial_pose: sapien.Pose | None = None,
+    scene_idxs: list[int] | None = None,
+) -> Actor:
+    """A dynamic actor whose origin is at the bottom centre of the object (so it rests at z = 0 on a support).
+
+    `scene_idxs` builds it only in those parallel envs (objects differ per env; merge them with `Actor.merge`).
+    """
     builder = scene.create_actor_builder()
+    if scene_idxs is not None:
+        builder.set_scene_idxs(scene_idxs)
     material = sapien.physx.PhysxMaterial(OBJECT_FRICTION, OBJECT_FRICTION, 0.0)
     h = spec.height_m
     if spec.shape == "cylinder":

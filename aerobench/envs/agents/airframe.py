@@ -17,8 +17,10 @@ from mani_skill.utils import common, sapien_utils
 from mani_skill.utils.structs import Actor, Pose
 from sapien.wrapper.articulation_builder import LinkBuilder
 
+from ..collision import ignore_self_collisions
 from ..control.payload import ControllerMode
 from ..control.virtual_joints import VIRTUAL_JOINT_NAMES, AirframeState, airframe_state_from_joints
+from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
 from .body_controller import AerialBodyController, AerialBodyControllerConfig
 
@@ -89,7 +91,8 @@ class AerialAgent(BaseAgent):
 
     platform: PlatformSpec
     fix_root_link = True
-    disable_self_collisions = True  # the fingers touch each other and the palm by design
+    # the fingers touch each other and the palm by design: a self-collision bit of the drone's own (collision.py)
+    disable_self_collisions = False
     arm_joint_names: tuple[str, ...] = ()
     grasp_link_name: str = "airframe"  # link the fingers and the tool centre point ride on
 
@@ -98,7 +101,6 @@ class AerialAgent(BaseAgent):
     # ----------------------------------------------------------------------------------------------------------------
     def _load_articulation(self, initial_pose=None):
         builder = self.scene.create_articulation_builder()
-        builder.disable_self_collisions = self.disable_self_collisions
         parent = builder.create_link_builder()
         parent.set_name("world_anchor")
         parent.set_mass_and_inertia(VIRTUAL_LINK_MASS_KG, sapien.Pose(), [VIRTUAL_LINK_INERTIA] * 3)
@@ -117,6 +119,7 @@ class AerialAgent(BaseAgent):
         builder.initial_pose = initial_pose if initial_pose is not None else sapien.Pose()
         builder.set_name(self.uid if self._agent_idx is None else f"{self.uid}-agent-{self._agent_idx}")
         self.robot = builder.build(fix_root_link=True)
+        ignore_self_collisions(self.robot, "drone")
         self.robot_link_names = [link.name for link in self.robot.get_links()]
 
     def _build_airframe(self, airframe: LinkBuilder) -> None:
@@ -257,6 +260,14 @@ class AerialAgent(BaseAgent):
         """Position and velocity of the airframe centre, rotation and body angular velocity, `(N, ...)`."""
         idx = self.virtual_joint_indices
         return airframe_state_from_joints(self.robot.get_qpos()[:, idx], self.robot.get_qvel()[:, idx])
+
+    def get_proprioception(self) -> dict:
+        """The documented proprioceptive state (`observations.STATE_FIELDS`), `(N, 19)` or `(N, 25)` with the arm."""
+        q, qd = self.robot.get_qpos(), self.robot.get_qvel()
+        fingers = [self.robot.active_joints_map[n].active_index[0] for n in FINGER_JOINT_NAMES]
+        arm = [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
+        state = proprio_state(self.airframe_state(), q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])
+        return {"state": state}
 
     def arm_qpos(self) -> torch.Tensor:
         """Arm joint positions `(N, 3)` (shoulder, elbow, wrist); empty `(N, 0)` on the gripper platform."""

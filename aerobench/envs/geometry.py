@@ -1,0 +1,94 @@
+"""Batched geometry against scene boxes: distances, the drone's collision proxy, start-pose feasibility.
+
+Scenes are unions of oriented boxes (`scenes.layout.Box`), so clearances and collision-free checks are analytic and
+need no simulator query. Packed boxes are a tensor `(N, B, 8)`: centre xyz, half sizes xyz, yaw, valid flag, one row
+of B boxes per env (padded with invalid rows where envs have fewer boxes).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+
+from .platforms import PlatformSpec
+from .scenes.layout import Box
+
+FAR_M = 1e3  # distance reported for padding boxes
+
+
+def pack_boxes(per_env: Sequence[Sequence[Box]], device: torch.device | str = "cpu") -> torch.Tensor:
+    """`(N, B, 8)` tensor of the boxes of each env (B = the largest count; missing rows have valid = 0)."""
+    width = max((len(b) for b in per_env), default=0)
+    packed = torch.zeros(len(per_env), max(width, 1), 8)
+    for i, boxes in enumerate(per_env):
+        for j, b in enumerate(boxes):
+            packed[i, j] = torch.tensor([*b.center, *b.half_size, b.yaw, 1.0])
+    return packed.to(device)
+
+
+def point_box_distance(points: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
+    """Signed distance from points `(N, P, 3)` to boxes `(N, B, 8)`: `(N, P, B)`, negative inside.
+
+    Exact for boxes rotated about z: transform the point into the box frame and take the box SDF.
+    """
+    center, half, yaw, valid = boxes[..., 0:3], boxes[..., 3:6], boxes[..., 6], boxes[..., 7]
+    d = points[:, :, None, :] - center[:, None, :, :]  # (N, P, B, 3)
+    c, s = torch.cos(yaw)[:, None], torch.sin(yaw)[:, None]
+    local = torch.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1], d[..., 2]], dim=-1)
+    q = local.abs() - half[:, None]
+    outside = torch.linalg.norm(q.clamp_min(0.0), dim=-1)
+    inside = q.max(dim=-1).values.clamp_max(0.0)
+    dist = outside + inside
+    return torch.where(valid[:, None, :] > 0.5, dist, torch.full_like(dist, FAR_M))
+
+
+def min_distance_to_boxes(points: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
+    """Smallest signed distance of any point to any box, `(N,)`."""
+    return point_box_distance(points, boxes).flatten(1).min(dim=1).values
+
+
+def drone_proxy_points_body(platform: PlatformSpec, rim_samples: int = 8) -> tuple[torch.Tensor, float]:
+    """Points on the drone's rigid geometry (rotor-disk rims, frame, manipulator mount) in the body frame.
+
+    Returns `(P, 3)` points and the radius to subtract (the disks' half thickness plus a small margin), so that
+    "distance minus radius" is a conservative clearance of the airframe. Fingers are left out on purpose (the
+    spec's clearance check C excludes them; grasp contacts are intended).
+    """
+    r = platform.rotors
+    pts = []
+    for x, y in r.positions_xy:
+        for k in range(rim_samples):
+            a = 2 * math.pi * k / rim_samples
+            pts.append((x + r.disk_radius_m * math.cos(a), y + r.disk_radius_m * math.sin(a), r.height_m))
+        pts.append((x, y, r.height_m))
+    pts += [(0.0, 0.0, 0.0), (0.07, 0.07, -0.02), (0.07, -0.07, -0.02), (-0.07, 0.07, -0.02), (-0.07, -0.07, -0.02)]
+    if platform.arm is None:
+        gp = platform.grasp_point_m
+        pts += [(0.0, 0.0, -0.10), (0.0, 0.0, gp[2] + 0.12)]  # gripper mast and palm
+    return torch.tensor(pts, dtype=torch.float32), r.disk_thickness_m / 2 + 0.01
+
+
+def body_points_to_world(points_body: torch.Tensor, position: torch.Tensor, rotation: torch.Tensor) -> torch.Tensor:
+    """`(P, 3)` body points -> `(N, P, 3)` world points for poses `(N, 3)`, `(N, 3, 3)`."""
+    return position[:, None, :] + torch.einsum("nij,pj->npi", rotation, points_body)
+
+
+def level_drone_points(positions: torch.Tensor, yaw: torch.Tensor, points_body: torch.Tensor) -> torch.Tensor:
+    """Proxy points of a level drone at candidate positions `(N, K, 3)` and headings `(N, K)`: `(N, K, P, 3)`."""
+    c, s = torch.cos(yaw)[..., None], torch.sin(yaw)[..., None]
+    px, py, pz = points_body[:, 0], points_body[:, 1], points_body[:, 2]
+    return torch.stack(
+        [positions[..., 0:1] + c * px - s * py, positions[..., 1:2] + s * px + c * py, positions[..., 2:3] + pz], dim=-1
+    )
+
+
+def is_pose_free(
+    positions: torch.Tensor, yaw: torch.Tensor, boxes: torch.Tensor, points_body: torch.Tensor, clearance_m: float
+) -> torch.Tensor:
+    """Which candidate level poses `(N, K)` keep every proxy point `clearance_m` away from every box."""
+    n, k = positions.shape[:2]
+    pts = level_drone_points(positions, yaw, points_body).reshape(n, -1, 3)
+    dist = point_box_distance(pts, boxes).reshape(n, k, points_body.shape[0], -1)
+    return dist.flatten(2).min(dim=-1).values > clearance_m

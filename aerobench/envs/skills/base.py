@@ -1,0 +1,537 @@
+"""`AeroSkillEnv`: what the five skill envs and the sequential env share.
+
+A skill env = a task setting's procedural scene (one layout per parallel env), its objects, the platform, one or
+more `SkillEvaluator`s (pick, place, nav, open/close; `evaluators.py`) and the episode sampler of its first skill.
+Per control step the env reads contacts once, computes the shared signals (`StepContext`), lets the active
+evaluator add its own, latches failures, and hands the payload / contact-mode switches to the flight controller.
+
+Args (besides ManiSkill's `num_envs`, `obs_mode`, `sim_backend`, ...): `setting` (TidyHouse | PrepareGroceries |
+PackageDelivery | LongHorizonRearrangement), `object` (one of the setting's objects; default: sampled per env),
+`platform` (gripper | arm; default per skill), `controller` (payload-aware | nominal), `num_distractors`.
+On one CPU env the layout is regenerated every episode; with parallel envs (GPU) each env keeps its layout until
+`reset(options={"reconfigure": True})` (ManiSkill's `reconfiguration_freq` overrides either default).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import sapien
+import torch
+from mani_skill.sensors.camera import CameraConfig
+from mani_skill.utils import sapien_utils
+from mani_skill.utils.structs import Actor, Pose
+
+from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
+from ..base_env import AerialEnv
+from ..checks import (
+    FailureCause,
+    SafetyLimits,
+    flight_envelope_flags,
+    is_pinched,
+    latch_failure,
+    nontarget_contact_force,
+    support_force,
+)
+from ..contacts import ContactReader, ContactReadout
+from ..control.so3 import quat_wxyz_to_matrix
+from ..control.virtual_joints import AirframeState
+from ..geometry import (
+    body_points_to_world,
+    drone_proxy_points_body,
+    is_pose_free,
+    min_distance_to_boxes,
+    pack_boxes,
+    point_box_distance,
+)
+from ..objects import ObjectSpec, build_object, get_object
+from ..scenes import articulated, generate_layout
+from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
+from ..scenes.layout import SceneLayout, Support
+from ..tasks import DEFAULT_PLATFORM, TaskSetting, get_setting
+
+SUPPORT_KINDS = ("table", "counter", "shelf", "cabinet", "sofa", "vehicle", "fridge_shelf", "drawer")
+START_DISTANCE_M = (0.5, 1.0)  # spec: skill episodes start 0.5-1 m from the target
+START_CLEARANCE_M = 0.10  # drone proxy points this far from any box at the start
+START_CANDIDATES = 96
+PARKING_DEPTH_M = -2.0  # distractors that find no room wait under the floor
+RENDER_EYE_CANDIDATES = 12
+GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force
+HELD_FORCE_N = 0.1  # spec (chained evaluation, Open/Close release): "both fingers exceed 0.1 N"
+SUPPORTED_WEIGHT_FRACTION = 0.3  # support evidence: the non-finger contacts carry this share of the weight
+UPRIGHT_COS = math.cos(math.radians(15.0))
+
+
+@dataclass
+class StepContext:
+    """Everything evaluators read at one control step, computed once by the env. `(N, ...)` tensors."""
+
+    step: torch.Tensor  # (N,) control steps since the episode started
+    state: AirframeState
+    readout: ContactReadout
+    speed: torch.Tensor
+    angular_speed: torch.Tensor
+    nontarget_force: torch.Tensor
+    airframe_force: torch.Tensor
+    gripper_opening: torch.Tensor
+    gripper_command: torch.Tensor  # last commanded opening in [-1, 1]
+    tcp: torch.Tensor  # (N, 3)
+    opening_dirs: torch.Tensor  # (N, 2, 3) each finger's opening direction
+    # the target object (None without one)
+    object_pose: Pose | None = None
+    object_rotation: torch.Tensor | None = None
+    object_velocity: torch.Tensor | None = None
+    object_bottom_z: torch.Tensor | None = None
+    grasp_point: torch.Tensor | None = None  # (N, 3) world position of the object's planned grasp point
+    is_grasped: torch.Tensor | None = None  # both fingers >= GRASP_FORCE_N along their opening directions
+    is_grasp_held: torch.Tensor | None = None  # both fingers > HELD_FORCE_N (spec's transport criterion)
+    is_supported: torch.Tensor | None = None  # something other than the fingers carries >= 30% of its weight
+    is_upright: torch.Tensor | None = None
+
+
+class AeroSkillEnv(AerialEnv):
+    """Base of AeroPick/Place/Nav/Open/Close and AeroSequential. Subclasses set `skill` and `_make_evaluators`."""
+
+    SUPPORTED_OBS_MODES = ("state", "state_dict", "none", "sensor_data", "rgb", "depth", "rgbd")
+    SUPPORTED_REWARD_MODES = ("sparse", "none")
+    skill: str = ""
+    uses_object = True
+    safety = SafetyLimits()
+
+    def __init__(
+        self,
+        *args,
+        setting: str = "TidyHouse",
+        object: str | None = None,  # noqa: A002  (the spec's kwarg name)
+        platform: str | None = None,
+        num_distractors: int = 2,
+        reconfiguration_freq: int | None = None,
+        **kwargs,
+    ):
+        self.setting: TaskSetting = get_setting(setting)
+        self._check_setting()
+        if object is not None:
+            self.setting.check_object(object)
+        self.object_name = object
+        self.num_distractors = int(num_distractors) if self.uses_object else 0
+        if reconfiguration_freq is None:
+            reconfiguration_freq = 1 if kwargs.get("num_envs", 1) == 1 else 0
+        super().__init__(
+            *args, platform=platform or self._default_platform(), reconfiguration_freq=reconfiguration_freq, **kwargs
+        )
+
+    def _check_setting(self) -> None:
+        self.setting.check_skill(self.skill)
+
+    def _default_platform(self) -> str:
+        return DEFAULT_PLATFORM[self.skill]
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # Scene
+    # ----------------------------------------------------------------------------------------------------------------
+    def _load_scene(self, options: dict):
+        seeds = [int(s) for s in np.atleast_1d(self._episode_seed)]
+        rngs = [np.random.default_rng(s) for s in seeds]
+        self.layouts: list[SceneLayout] = [generate_layout(self.setting.scene, rng) for rng in rngs]
+        self.built: BuiltScene = build_layouts(self.scene, self.layouts)
+        self.static_boxes = pack_boxes([layout.boxes for layout in self.layouts], self.device)
+        self.workspace_lo = torch.tensor([layout.workspace_lo for layout in self.layouts], device=self.device)
+        self.workspace_hi = torch.tensor([layout.workspace_hi for layout in self.layouts], device=self.device)
+        self._pack_supports()
+        self.target: Actor | None = None
+        self.target_specs: list[ObjectSpec] = []
+        self.distractors: list[Actor] = []
+        if self.uses_object:
+            names = [self.object_name or str(rng.choice(self.setting.objects)) for rng in rngs]
+            self.target_specs = [get_object(n) for n in names]
+            self.target = self._build_per_env(self.target_specs, "target")
+            for slot in range(self.num_distractors):
+                others = [[o for o in self.setting.objects if o != n] or [n] for n in names]
+                specs = [get_object(str(rng.choice(pool))) for rng, pool in zip(rngs, others)]
+                self.distractors.append(self._build_per_env(specs, f"distractor_{slot}"))
+            self._object_tensors()
+        rig = self.scene.create_actor_builder()
+        rig.initial_pose = sapien.Pose(p=[0, 0, 2])
+        self.camera_rig = rig.build_kinematic(name="camera_rig")
+        self.proxy_points, self.proxy_radius = drone_proxy_points_body(self.platform)
+        self.proxy_points = self.proxy_points.to(self.device)
+        self.evaluators = self._make_evaluators()
+
+    def _build_per_env(self, specs: list[ObjectSpec], name: str) -> Actor:
+        actors = [
+            build_object(self.scene, spec, f"{name}_{i}", sapien.Pose(p=[0, 0, PARKING_DEPTH_M - i]), scene_idxs=[i])
+            for i, spec in enumerate(specs)
+        ]
+        return Actor.merge(actors, name=name)
+
+    def _object_tensors(self) -> None:
+        def t(values):
+            return torch.tensor(values, dtype=torch.float32, device=self.device)
+
+        specs = self.target_specs
+        self.target_mass = t([s.mass_kg for s in specs])
+        self.target_height = t([s.height_m for s in specs])
+        self.target_grasp_width = t([s.grasp_width_m for s in specs])
+        self.target_radius = t([s.footprint_radius_m for s in specs])
+        self.target_grasp_point = t([s.grasp_point_m for s in specs])  # (N, 3), object frame
+
+    def _pack_supports(self) -> None:
+        width = max(len(layout.supports) for layout in self.layouts)
+        packed = torch.zeros(self.num_envs, max(width, 1), 8)
+        for i, layout in enumerate(self.layouts):
+            for j, s in enumerate(layout.supports):
+                kind = SUPPORT_KINDS.index(s.kind) if s.kind in SUPPORT_KINDS else -1
+                packed[i, j] = torch.tensor([*s.center, *s.half_size, s.height, s.yaw, kind, 1.0][:8])
+        # columns: cx, cy, hx, hy, height, yaw, kind, valid
+        self.supports = packed.to(self.device)
+
+    def support_of(self, env: int, index: int) -> Support:
+        return self.layouts[env].supports[index]
+
+    def _load_lighting(self, options: dict):
+        light_layouts(self.scene, self.layouts, shadow=self.enable_shadow)
+        self.scene.add_directional_light([0, 0, -1], [0.4, 0.4, 0.4])
+
+    @property
+    def _default_human_render_camera_configs(self):
+        # Third-person view for videos and pictures, riding on a kinematic rig that `aim_render_camera` places in
+        # free space near the drone at every reset (a fixed pose would sit inside some layout's wall).
+        return CameraConfig("render_camera", sapien.Pose(), 384, 384, math.radians(70), 0.01, 30, mount=self.camera_rig)
+
+    def aim_render_camera(self, env_idx: torch.Tensor) -> None:
+        """Put the third-person camera 1.6-2.2 m from the drone, above it, in free space, looking at it."""
+        m = len(env_idx)
+        target = self.agent.airframe_state().position[env_idx] + torch.tensor([0.0, 0.0, -0.2], device=self.device)
+        angles = torch.linspace(0, 2 * math.pi, RENDER_EYE_CANDIDATES + 1, device=self.device)[:-1]
+        best_eye = target + torch.tensor([-1.6, 0.0, 0.9], device=self.device)
+        best_score = torch.full((m,), -1e9, device=self.device)
+        boxes = self.obstacle_boxes(env_idx)
+        lo, hi = self.workspace_lo[env_idx], self.workspace_hi[env_idx]
+        for dist in (2.2, 1.6, 1.1):
+            eye = target[:, None] + torch.stack(
+                [dist * torch.cos(angles), dist * torch.sin(angles), torch.full_like(angles, 0.9)], -1
+            )[None]
+            eye[..., 2] = torch.minimum(eye[..., 2], hi[:, None, 2] - 0.15)
+            clearance = point_box_distance(eye, boxes).min(-1).values
+            inside = ((eye > lo[:, None] + 0.05) & (eye < hi[:, None] - 0.05)).all(-1)
+            score = torch.where(inside & (clearance > 0.1), clearance + dist, torch.full_like(clearance, -1e9))
+            k = score.argmax(-1)
+            top = score[torch.arange(m), k]
+            better = top > best_score
+            best_eye = torch.where(better[:, None], eye[torch.arange(m), k], best_eye)
+            best_score = torch.maximum(best_score, top)
+        poses = [sapien_utils.look_at(e.tolist(), t.tolist()) for e, t in zip(best_eye.cpu(), target.cpu())]
+        raw = torch.cat([p.raw_pose for p in poses], 0).to(self.device)
+        self.camera_rig.set_pose(Pose.create(raw))
+
+    def _after_reconfigure(self, options):
+        names = [link.name for link in self.agent.robot.links if link.name not in VIRTUAL_LINK_NAMES]
+        self.monitored_links = names
+        self.contacts = ContactReader(
+            self.scene, self.agent.robot, names, FINGER_JOINT_NAMES, self.target, self._handle_links()
+        )
+
+    def _handle_links(self) -> list:
+        """Fixture links whose handles the fingers may pinch (Open/Close)."""
+        return []
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # Episode sampling helpers (batched over the envs being reset)
+    # ----------------------------------------------------------------------------------------------------------------
+    def sample_supports(self, env_idx: torch.Tensor, kinds: tuple[str, ...]) -> tuple[torch.Tensor, torch.Tensor]:
+        """A random support of one of `kinds` per env: `(M,)` index and `(M,)` ok flag (False: the layout has none)."""
+        table = self.supports[env_idx]
+        kind_ids = torch.tensor([SUPPORT_KINDS.index(k) for k in kinds if k in SUPPORT_KINDS], device=self.device)
+        allowed = (table[..., 7] > 0.5) & (table[..., 6][..., None] == kind_ids).any(-1)
+        ok = allowed.any(-1)
+        weights = allowed.float() + (~ok)[:, None].float()  # any row stays samplable; ok says whether it is valid
+        return torch.multinomial(weights, 1)[:, 0], ok
+
+    def sample_on_support(self, env_idx: torch.Tensor, index: torch.Tensor, margin: torch.Tensor) -> torch.Tensor:
+        """A uniform point `(M, 3)` on each chosen support, `margin` `(M,)` inside its edges, at the surface height."""
+        row = self.supports[env_idx, index]
+        half = (row[:, 2:4] - margin[:, None]).clamp_min(0.0)
+        local = (torch.rand(len(env_idx), 2, device=self.device) * 2 - 1) * half
+        c, s = torch.cos(row[:, 5]), torch.sin(row[:, 5])
+        xy = row[:, 0:2] + torch.stack([c * local[:, 0] - s * local[:, 1], s * local[:, 0] + c * local[:, 1]], -1)
+        return torch.cat([xy, row[:, 4:5]], dim=-1)
+
+    def inside_support(self, env_idx: torch.Tensor, index: torch.Tensor, xy: torch.Tensor, margin: float = 0.0) -> torch.Tensor:
+        row = self.supports[env_idx, index]
+        d = xy - row[:, 0:2]
+        c, s = torch.cos(-row[:, 5]), torch.sin(-row[:, 5])
+        local = torch.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], -1)
+        return (local.abs() <= row[:, 2:4] - margin).all(-1)
+
+    def obstacle_boxes(self, env_idx: torch.Tensor) -> torch.Tensor:
+        """Packed static boxes plus the fixtures (fridge, drawer) in their current state, for the given envs."""
+        if not self.built.fixtures:
+            return self.static_boxes[env_idx]
+        names = list(self.built.fixtures)
+        fixtures = articulated.packed_fixture_boxes(names, [self.built.fixtures[n] for n in names])
+        return torch.cat([self.static_boxes, fixtures], dim=1)[env_idx]
+
+    def sample_start(
+        self,
+        env_idx: torch.Tensor,
+        anchor: torch.Tensor,
+        min_tcp_height: torch.Tensor,
+        face_anchor: bool = False,
+        carried_points: torch.Tensor | None = None,
+        distance: tuple[float, float] = START_DISTANCE_M,
+        reject=None,
+        from_airframe: bool = False,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """A collision-free level start with the tool centre point `distance` from `anchor` `(M, 3)`.
+
+        Returns the airframe position `(M, 3)`, heading `(M,)` and whether a free start was found `(M,)`.
+        `carried_points` `(M, Q, 3)` are points of a held object relative to the tool centre point (world axes);
+        `reject(tcp (M, K, 3)) -> (M, K)` vetoes candidates; `from_airframe` measures the distance from the
+        airframe centre instead of the tool centre point (navigation targets).
+        """
+        m, k = len(env_idx), START_CANDIDATES
+        dev = self.device
+        direction = torch.randn(m, k, 3, device=dev)
+        direction[..., 2] = direction[..., 2].abs() * 0.6  # starts from level to well above the target
+        direction = direction / torch.linalg.norm(direction, dim=-1, keepdim=True)
+        dist = distance[0] + torch.rand(m, k, 1, device=dev) * (distance[1] - distance[0])
+        tcp = anchor[:, None, :] + dist * direction
+        yaw = (torch.rand(m, k, device=dev) * 2 - 1) * math.pi
+        offset = torch.tensor(self.platform.grasp_point_m, device=dev)
+        if face_anchor:  # the arm reaches forward: look at the anchor
+            to_anchor = anchor[:, None, :2] - tcp[..., :2]
+            yaw = torch.atan2(to_anchor[..., 1], to_anchor[..., 0])
+        c, s = torch.cos(yaw), torch.sin(yaw)
+        rotated = torch.stack([c * offset[0] - s * offset[1], s * offset[0] + c * offset[1], offset[2].expand_as(c)], -1)
+        if from_airframe:
+            airframe, tcp = tcp, tcp + rotated
+        else:
+            airframe = tcp - rotated
+        boxes = self.obstacle_boxes(env_idx)
+        free = is_pose_free(airframe, yaw, boxes, self.proxy_points, START_CLEARANCE_M + self.proxy_radius)
+        lo, hi = self.workspace_lo[env_idx][:, None], self.workspace_hi[env_idx][:, None]
+        free &= (airframe[..., :2] > lo[..., :2] + 0.4).all(-1) & (airframe[..., :2] < hi[..., :2] - 0.4).all(-1)
+        free &= (airframe[..., 2] > lo[..., 2] + self.safety.min_altitude_m + 0.1)
+        free &= airframe[..., 2] < hi[..., 2] - self.safety.ceiling_margin_m - 0.2
+        free &= tcp[..., 2] >= min_tcp_height[:, None]
+        if reject is not None:
+            free &= ~reject(tcp)
+        if carried_points is not None:
+            pts = (tcp[:, :, None, :] + carried_points[:, None]).reshape(m, -1, 3)
+            d = point_box_distance(pts, boxes).reshape(m, k, -1)
+            free &= d.min(-1).values > START_CLEARANCE_M
+        ok = free.any(-1)
+        pick = torch.argmax(free.int(), dim=-1)
+        rows = torch.arange(m, device=dev)
+        return airframe[rows, pick], yaw[rows, pick], ok
+
+    def set_drone(self, env_idx: torch.Tensor, position: torch.Tensor, yaw: torch.Tensor, finger_half_opening=None) -> None:
+        qpos = self.agent.robot.get_qpos().clone()
+        new = self.agent.hover_qpos(position, yaw)
+        if finger_half_opening is not None:
+            for name in FINGER_JOINT_NAMES:
+                new[:, self.agent.robot.active_joints_map[name].active_index[0]] = finger_half_opening
+        qpos[env_idx] = new
+        self.agent.robot.set_qpos(qpos)
+        self.agent.robot.set_qvel(torch.zeros_like(qpos))
+
+    def place_object(self, actor: Actor, env_idx: torch.Tensor, bottom: torch.Tensor, yaw: torch.Tensor) -> None:
+        """Upright at `bottom` `(M, 3)` (origin at the object's bottom centre) with heading `yaw`."""
+        q = torch.stack([torch.cos(yaw / 2), torch.zeros_like(yaw), torch.zeros_like(yaw), torch.sin(yaw / 2)], -1)
+        actor.set_pose(Pose.create_from_pq(p=bottom + torch.tensor([0, 0, 0.002], device=self.device), q=q))
+        actor.set_linear_velocity(torch.zeros(len(env_idx), 3, device=self.device))
+        actor.set_angular_velocity(torch.zeros(len(env_idx), 3, device=self.device))
+
+    def place_distractors(self, env_idx: torch.Tensor, avoid: torch.Tensor, kinds: tuple[str, ...]) -> None:
+        """Distractors on random supports, away from `avoid` `(M, 3)` (the target) and from each other."""
+        placed = [avoid]
+        for actor in self.distractors:
+            index, ok = self.sample_supports(env_idx, kinds)
+            best = None
+            for _ in range(8):  # a few tries; the last one stands
+                point = self.sample_on_support(env_idx, index, torch.full((len(env_idx),), 0.12, device=self.device))
+                clear = torch.stack([torch.linalg.norm((point - p)[:, :2], dim=-1) for p in placed]).min(0).values > 0.25
+                best = point if best is None else torch.where((clear & ok)[:, None], point, best)
+            parked = torch.tensor([0.0, 0.0, PARKING_DEPTH_M], device=self.device).expand_as(best)
+            best = torch.where(ok[:, None], best, parked)
+            self.place_object(actor, env_idx, best, (torch.rand(len(env_idx), device=self.device) * 2 - 1) * math.pi)
+            placed.append(best)
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # Episode
+    # ----------------------------------------------------------------------------------------------------------------
+    def _initialize_episode(self, env_idx: torch.Tensor, options: dict):
+        place_fixtures(self.built, env_idx)
+        n = self.num_envs
+        if not hasattr(self, "_fail_cause") or self._fail_cause.shape[0] != n:
+            self._fail_cause = torch.zeros(n, dtype=torch.long, device=self.device)
+            self._episode_step = torch.zeros(n, dtype=torch.long, device=self.device)
+            self.init_failed = torch.zeros(n, dtype=torch.bool, device=self.device)
+            self.instructions = [""] * n
+            self._gripper_command = torch.ones(n, device=self.device)
+        self._fail_cause[env_idx] = 0
+        self._episode_step[env_idx] = 0
+        self._gripper_command[env_idx] = 1.0
+        self.init_failed[env_idx] = ~self._sample_episode(env_idx)
+        self.aim_render_camera(env_idx)
+        self._signals_step = -1
+
+    def _sample_episode(self, env_idx: torch.Tensor) -> torch.Tensor:
+        """Place objects and the drone for a new episode; return `(M,)` whether a feasible start was found."""
+        raise NotImplementedError
+
+    def _make_evaluators(self) -> list:
+        raise NotImplementedError
+
+    def active_evaluator_index(self) -> torch.Tensor:
+        """Which evaluator scores each env now, `(N,)`; a single-skill env always uses evaluator 0."""
+        return torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # Signals
+    # ----------------------------------------------------------------------------------------------------------------
+    def _after_control_step(self):
+        self._episode_step += 1
+
+    def step_context(self) -> StepContext:
+        state = self.agent.airframe_state()
+        readout = self.contacts.read()
+        finger_idx = [self.monitored_links.index(n) for n in FINGER_JOINT_NAMES]
+        airframe_idx = self.monitored_links.index("airframe")
+        opening_dirs = torch.stack(
+            [sign * link.pose.to_transformation_matrix()[..., :3, 1] for link, sign in zip(self.agent.finger_links, (1.0, -1.0))],
+            dim=1,
+        )
+        omega_world = (state.rotation @ state.angular_velocity_body[..., None])[..., 0]
+        ctx = StepContext(
+            step=self._episode_step.clone(),
+            state=state,
+            readout=readout,
+            speed=torch.linalg.norm(state.velocity, dim=-1),
+            angular_speed=torch.linalg.norm(omega_world, dim=-1),
+            nontarget_force=nontarget_contact_force(readout.link_forces, finger_idx, readout.finger_on_target),
+            airframe_force=torch.linalg.norm(readout.link_forces[:, airframe_idx], dim=-1),
+            gripper_opening=self.agent.finger_opening(),
+            gripper_command=self._gripper_command.clone(),
+            tcp=self.agent.tcp_pose.p,
+            opening_dirs=opening_dirs,
+        )
+        if self.target is not None:
+            pose = self.target.pose
+            R = quat_wxyz_to_matrix(pose.q)
+            ctx.object_pose, ctx.object_rotation = pose, R
+            ctx.object_velocity = self.target.linear_velocity
+            ctx.object_bottom_z = pose.p[:, 2]
+            ctx.grasp_point = pose.p + (R @ self.target_grasp_point[..., None])[..., 0]
+            ctx.is_grasped = is_pinched(readout.finger_on_target, opening_dirs, GRASP_FORCE_N)
+            ctx.is_grasp_held = (torch.linalg.norm(readout.finger_on_target, dim=-1) > HELD_FORCE_N).all(-1)
+            lift = support_force(readout.target_net, readout.finger_on_target)[:, 2]
+            ctx.is_supported = lift >= SUPPORTED_WEIGHT_FRACTION * self.target_mass * 9.81
+            ctx.is_upright = R[:, 2, 2] >= UPRIGHT_COS
+        return ctx
+
+    def evaluate(self) -> dict:
+        """All per-step signals, `(N,)` tensors; computed once per control step (ManiSkill may call this again)."""
+        step_id = int(self._elapsed_steps.sum()) if self.num_envs else 0
+        if getattr(self, "_signals_step", -1) == step_id and hasattr(self, "_signals"):
+            return self._signals
+        ctx = self.step_context()
+        envelope = flight_envelope_flags(ctx.state.position, ctx.state.rotation, self.workspace_lo, self.workspace_hi, self.safety)
+        active = self.active_evaluator_index()
+        info: dict[str, torch.Tensor] = {
+            "tilt": torch.acos(torch.clamp(ctx.state.rotation[:, 2, 2], -1.0, 1.0)),
+            "altitude": ctx.state.position[:, 2] - self.workspace_lo[:, 2],
+            "speed": ctx.speed,
+            "angular_speed": ctx.angular_speed,
+            "nontarget_contact_force": ctx.nontarget_force,
+            "airframe_contact_force": ctx.airframe_force,
+            "gripper_opening": ctx.gripper_opening,
+            "min_obstacle_clearance": self.airframe_clearance(ctx.state),
+            "init_failed": self.init_failed.clone(),
+            "subtask_index": active,
+            **envelope,
+        }
+        if ctx.object_pose is not None:
+            f = torch.linalg.norm(ctx.readout.finger_on_target, dim=-1)
+            info.update(
+                is_grasped=ctx.is_grasped,
+                is_grasp_held=ctx.is_grasp_held,
+                grasp_force_left=f[:, 0],
+                grasp_force_right=f[:, 1],
+                object_height=ctx.object_bottom_z,
+                object_speed=torch.linalg.norm(ctx.object_velocity, dim=-1),
+                is_object_upright=ctx.is_upright,
+                is_object_supported=ctx.is_supported,
+                tcp_to_grasp_point=torch.linalg.norm(ctx.tcp - ctx.grasp_point, dim=-1),
+            )
+        success = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
+        flags: list[tuple[FailureCause, torch.Tensor]] = []
+        for k, evaluator in enumerate(self.evaluators):
+            mine = active == k
+            signals, skill_success, skill_flags = evaluator.update(ctx, mine)
+            for key, value in signals.items():
+                # an evaluator's own signals read as False / 0 in envs where another subtask is active
+                info[key] = torch.where(mine, value, info[key] if key in info else torch.zeros_like(value))
+            success |= mine & skill_success
+            flags += [(cause, mine & flag) for cause, flag in skill_flags]
+        flags += [
+            (FailureCause.TILT, envelope["fail_tilt"]),
+            (FailureCause.LOW, envelope["fail_low"]),
+            (FailureCause.HIGH, envelope["fail_high"]),
+            (FailureCause.WORKSPACE, envelope["fail_workspace"]),
+        ]
+        self._fail_cause = latch_failure(self._fail_cause, flags)
+        fail = self._fail_cause != 0
+        info["fail_cause"] = self._fail_cause.clone()
+        info["fail"] = fail
+        info["success"] = self._overall_success(success) & ~fail
+        info["is_success"] = info["success"]
+        self._signals, self._signals_step = info, step_id
+        return info
+
+    def _overall_success(self, active_success: torch.Tensor) -> torch.Tensor:
+        return active_success
+
+    def airframe_clearance(self, state: AirframeState) -> torch.Tensor:
+        pts = body_points_to_world(self.proxy_points, state.position, state.rotation)
+        return min_distance_to_boxes(pts, self.obstacle_boxes(torch.arange(self.num_envs, device=self.device))) - self.proxy_radius
+
+    # ----------------------------------------------------------------------------------------------------------------
+    # Controller hand-offs, observations, instruction
+    # ----------------------------------------------------------------------------------------------------------------
+    def _step_action(self, action):
+        if action is not None:
+            a = torch.as_tensor(action, device=self.device, dtype=torch.float32)
+            a = a if a.ndim == 2 else a[None]
+            self._gripper_command = a[:, -1].clone()
+        return super()._step_action(action)
+
+    def payload_signals(self):
+        if self.target is None:
+            return None
+        info = self.evaluate()
+        return info["is_grasped"], info.get("is_set_down", torch.zeros_like(info["is_grasped"])), self.target_mass
+
+    def _before_control_step(self):
+        super()._before_control_step()
+        if self.platform.arm is not None and "is_handle_pinched" in self.evaluate():
+            self.agent.body_controller.set_contact_mode(self.evaluate()["is_handle_pinched"])
+
+    def _get_obs_extra(self, info: dict):
+        extra = {}
+        if "state" in self.obs_mode:
+            extra["tcp_pose"] = self.agent.tcp_pose.raw_pose
+            if self.target is not None:
+                extra["object_pose"] = self.target.pose.raw_pose
+            for evaluator in self.evaluators:
+                extra.update(evaluator.privileged_obs())
+        return extra
+
+    def get_instruction(self, env: int = 0) -> str:
+        return self.instructions[env]
+
+    @property
+    def task_description(self) -> str:
+        return self.instructions[0]

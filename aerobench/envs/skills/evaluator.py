@@ -1,0 +1,51 @@
+"""The interface every skill's evaluator implements (pick, place, nav, open/close).
+
+An evaluator owns one skill's goal and per-env trackers (streaks, latched events). The env calls `update` once per
+control step with the shared `StepContext` and a mask of the envs where this skill is the active one; trackers only
+advance there, so the same evaluator serves a single-skill env and one stage of a sequential env.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from ..checks import FailureCause
+
+Flags = list[tuple[FailureCause, torch.Tensor]]
+
+
+class SkillEvaluator:
+    skill: str = ""
+
+    def __init__(self, env, where: tuple[str, ...] = ()):
+        self.env = env
+        self.where = tuple(where)
+        self.device = env.device
+        self.n = env.num_envs
+
+    def zeros(self, dtype=torch.float32) -> torch.Tensor:
+        return torch.zeros(self.n, dtype=dtype, device=self.device)
+
+    def begin(self, env_idx: torch.Tensor) -> None:
+        """This skill becomes active for `env_idx` (episode start, or the previous chain stage succeeded)."""
+
+    def anchor(self, env_idx: torch.Tensor) -> torch.Tensor:
+        """The point `(M, 3)` the drone starts 0.5-1 m from when this skill starts an episode."""
+        raise NotImplementedError
+
+    def update(self, ctx, mine: torch.Tensor) -> tuple[dict[str, torch.Tensor], torch.Tensor, Flags]:
+        """(signals, success `(N,)`, failure flags in priority order) for this control step."""
+        raise NotImplementedError
+
+    def instruction(self, env: int) -> str:
+        raise NotImplementedError
+
+    def privileged_obs(self) -> dict[str, torch.Tensor]:
+        """Goal information for state observations (never part of the policy-facing camera/proprio inputs)."""
+        return {}
+
+    @staticmethod
+    def keep(mine: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> torch.Tensor:
+        """Advance a tracker only where this skill is active."""
+        m = mine.view(-1, *([1] * (new.dim() - 1)))
+        return torch.where(m, new, old)

@@ -1,0 +1,177 @@
+"""Place: set the held object down in the goal region, release it, back off and hover still (spec appendix)."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from mani_skill.utils.registration import register_env
+from mani_skill.utils.structs import Pose
+
+from ..checks import FailureCause, consecutive
+from ..platforms import CONTROL_HZ
+from ..tasks import instruction
+from .base import AeroSkillEnv
+from .evaluator import SkillEvaluator
+
+PLACE_ALIGN_M = 0.05  # horizontal alignment tolerance: the event t_o
+PLACE_GOAL_RADIUS_M = 0.10  # goal region around the goal point
+PLACE_REST_TOLERANCE_M = 0.02  # "resting height": object bottom this close to the goal support's surface
+OBJECT_STILL_MPS = 0.05
+GRIPPER_OPEN_MARGIN_M = 0.01  # open: the pads at least this much wider than the object's grasp width
+PLACE_CLEARANCE_M = 0.27  # spec: gripper more than 0.27 m from the object
+PLATFORM_STABLE_MPS = 0.025  # spec: platform speed below 0.025 m/s ...
+PLATFORM_STABLE_STEPS = 20  # ... for 20 consecutive control steps
+HOVER_ABOVE_GOAL_M = 0.05  # the anchor: the tool centre point a little above its placed position
+
+
+class PlaceEvaluator(SkillEvaluator):
+    skill = "place"
+
+    def __init__(self, env, where=()):
+        super().__init__(env, where)
+        self.kinds = self.where or env.setting.place_supports
+        self.goal = torch.zeros(self.n, 3, device=self.device)
+        self.goal_support = self.zeros(torch.long)
+        self.released = self.zeros(torch.bool)
+        self.stable_streak = self.zeros(torch.long)
+        self.unsupported_streak = self.zeros(torch.long)
+        self.collision_impulse = self.zeros()
+
+    def sample_goal(self, env_idx: torch.Tensor, avoid_support: torch.Tensor | None = None) -> torch.Tensor:
+        """A goal point on a destination support (`(M,)` ok: the layout has one)."""
+        env = self.env
+        index, ok = env.sample_supports(env_idx, self.kinds)
+        self.goal[env_idx] = env.sample_on_support(env_idx, index, env.target_radius[env_idx] + 0.05)
+        self.goal_support[env_idx] = index
+        return ok
+
+    def begin(self, env_idx):
+        self.released[env_idx] = False
+        self.stable_streak[env_idx] = 0
+        self.unsupported_streak[env_idx] = 0
+        self.collision_impulse[env_idx] = 0.0
+
+    def anchor(self, env_idx):
+        lift = self.env.target_grasp_point[env_idx, 2] + HOVER_ABOVE_GOAL_M
+        return self.goal[env_idx] + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+
+    def outside_destination(self, env_idx: torch.Tensor, tcp: torch.Tensor) -> torch.Tensor:
+        """Eligible held state: the object (under the tool centre point) is outside the destination support."""
+        m, k = tcp.shape[:2]
+        rows = env_idx.repeat_interleave(k)
+        inside = self.env.inside_support(rows, self.goal_support[rows], tcp.reshape(-1, 3)[:, :2], margin=-0.05)
+        return ~inside.reshape(m, k)
+
+    def update(self, ctx, mine):
+        env, limits = self.env, self.env.safety
+        all_envs = torch.arange(self.n, device=self.device)
+        obj_xy = ctx.object_pose.p[:, :2]
+        horizontal = torch.linalg.norm(obj_xy - self.goal[:, :2], dim=-1)
+        at_height = (ctx.object_bottom_z - self.goal[:, 2]).abs() < PLACE_REST_TOLERANCE_M
+        on_goal_support = env.inside_support(all_envs, self.goal_support, obj_xy)
+        support_contact = ctx.is_supported & at_height & on_goal_support
+        object_still = torch.linalg.norm(ctx.object_velocity, dim=-1) < OBJECT_STILL_MPS
+        placed = (horizontal < PLACE_GOAL_RADIUS_M) & ctx.is_upright & object_still & support_contact
+        gripper_open = ctx.gripper_opening > env.target_grasp_width + GRIPPER_OPEN_MARGIN_M
+        release = support_contact & ~ctx.is_grasp_held & gripper_open
+        self.released = self.keep(mine, self.released | release, self.released)
+        clear = torch.linalg.norm(ctx.tcp - ctx.grasp_point, dim=-1) > PLACE_CLEARANCE_M
+        self.stable_streak = self.keep(mine, consecutive(self.stable_streak, ctx.speed < PLATFORM_STABLE_MPS), self.stable_streak)
+        success = placed & gripper_open & self.released & clear & (self.stable_streak >= PLATFORM_STABLE_STEPS)
+        loose = ~ctx.is_grasped & ~ctx.is_supported & ~self.released
+        self.unsupported_streak = self.keep(mine, consecutive(self.unsupported_streak, loose), self.unsupported_streak)
+        self.collision_impulse = self.keep(
+            mine, self.collision_impulse + ctx.nontarget_force * (ctx.nontarget_force > limits.collision_force_n) / CONTROL_HZ, self.collision_impulse
+        )
+        flags = [
+            (FailureCause.COLLISION_FORCE, self.collision_impulse > limits.collision_impulse_budget_ns),
+            (FailureCause.OBJECT_DROP, ~ctx.is_grasped & (ctx.object_bottom_z < self.goal[:, 2] - limits.drop_margin_m)),
+            (FailureCause.UNSUPPORTED_RELEASE, self.unsupported_streak >= limits.unsupported_release_steps),
+        ]
+        signals = {
+            "goal_distance": horizontal,
+            "is_aligned": horizontal < PLACE_ALIGN_M,
+            "is_support_contact": support_contact,
+            "is_set_down": support_contact,
+            "is_placed": placed,
+            "is_gripper_open": gripper_open,
+            "is_released": release,
+            "release_registered": self.released.clone(),
+            "is_gripper_clear": clear,
+            "platform_stable_steps": self.stable_streak.clone(),
+            "collision_impulse": self.collision_impulse.clone(),
+        }
+        return signals, success, flags
+
+    def instruction(self, env):
+        support = self.env.support_of(env, int(self.goal_support[env]))
+        return instruction("place", obj=self.env.target_specs[env].name, where=support.name)
+
+    def privileged_obs(self):
+        return {"place_goal": self.goal.clone()}
+
+
+def put_object_in_gripper(env, env_idx: torch.Tensor, drone_yaw: torch.Tensor) -> None:
+    """Hold the target between the pads: grasp point at the tool centre point, object x along the closing axis."""
+    tcp = env.agent.tcp_pose.p[env_idx]
+    yaw = drone_yaw + math.pi / 2  # body y (the closing axis) = object x
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    g = env.target_grasp_point[env_idx]
+    bottom = tcp - torch.stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]], -1)
+    q = torch.stack([torch.cos(yaw / 2), torch.zeros_like(yaw), torch.zeros_like(yaw), torch.sin(yaw / 2)], -1)
+    env.target.set_pose(Pose.create_from_pq(p=bottom, q=q))
+    env.target.set_linear_velocity(torch.zeros(len(env_idx), 3, device=env.device))
+    env.target.set_angular_velocity(torch.zeros(len(env_idx), 3, device=env.device))
+
+
+def carried_object_points(env, env_idx: torch.Tensor) -> torch.Tensor:
+    """Points of a held object relative to the tool centre point `(M, 5, 3)`: bottom centre and footprint."""
+    g = env.target_grasp_point[env_idx]
+    r = env.target_radius[env_idx]
+    zero = torch.zeros_like(r)
+    bottom = -g[:, 2]
+    pts = [torch.stack([zero, zero, bottom], -1)]
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        pts.append(torch.stack([dx * r, dy * r, bottom], -1))
+    return torch.stack(pts, dim=1)
+
+
+@register_env("AeroPlace-v1", max_episode_steps=1000)
+class AeroPlaceEnv(AeroSkillEnv):
+    """**Task description.** Carry the held object to the goal, set it down there, open the gripper, back off and
+    hover still.
+
+    **Randomizations.** Layout, materials, lights, object class (unless `object=`), the destination support and the
+    goal point on it, distractors, and the start: an eligible held state (object pinched at the tool centre point,
+    outside the destination support), the tool centre point 0.5-1 m from the point above the goal.
+
+    **Success conditions** (spec): object in the goal region (10 cm), upright, still and resting on the destination
+    support; gripper open; release registered; gripper more than 0.27 m from the object; platform speed below
+    0.025 m/s for 20 consecutive control steps; no latched failure. **Fails** on the collision-force budget, flight
+    envelope, object drop or an unsupported release. Episodes are 1000 control steps (spec's place budget).
+    """
+
+    skill = "place"
+
+    def _make_evaluators(self):
+        return [PlaceEvaluator(self)]
+
+    def _sample_episode(self, env_idx):
+        place = self.evaluators[0]
+        ok = place.sample_goal(env_idx)
+        self.place_distractors(env_idx, place.goal[env_idx], self.setting.place_supports)
+        height = place.goal[env_idx, 2] + self.target_height[env_idx] + 0.10
+        position, yaw, free = self.sample_start(
+            env_idx,
+            place.anchor(env_idx),
+            height + self.target_grasp_point[env_idx, 2],
+            carried_points=carried_object_points(self, env_idx),
+            reject=lambda tcp: ~place.outside_destination(env_idx, tcp),
+        )
+        self.set_drone(env_idx, position, yaw, finger_half_opening=self.target_grasp_width[env_idx] / 2)
+        put_object_in_gripper(self, env_idx, yaw)
+        place.begin(env_idx)
+        for i in env_idx.tolist():
+            self.instructions[i] = place.instruction(i)
+        return ok & free

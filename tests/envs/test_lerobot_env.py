@@ -1,0 +1,81 @@
+"""The `aerobench` LeRobot env type: config, adapter contract, and `lerobot-eval` running a tiny random ACT."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from lerobot.envs.configs import EnvConfig
+
+from aerobench.envs.lerobot_env import AerobenchEnvConfig, make_lerobot_env
+
+CAMERAS = ("drone_front", "drone_hand", "drone_own")
+
+
+def test_registered_with_lerobot_and_features():
+    assert EnvConfig.get_choice_class("aerobench") is AerobenchEnvConfig
+    cfg = AerobenchEnvConfig(task="PrepareGroceries/open")
+    assert cfg.features["action"].shape == (8,) and cfg.features["agent_pos"].shape == (25,)  # arm platform
+    assert cfg.features_map["pixels/drone_hand"] == "observation.images.drone_hand"
+    assert cfg.features_map["agent_pos"] == "observation.state"
+    with pytest.raises(ValueError, match="unknown setting 'Mars'"):
+        AerobenchEnvConfig(task="Mars/pick")
+    with pytest.raises(ValueError, match="TidyHouse has no close skill"):
+        AerobenchEnvConfig(task="TidyHouse/close")
+
+
+def test_adapter_speaks_lerobots_gym_contract():
+    env = make_lerobot_env("TidyHouse/pick", episode_length=5)
+    obs, info = env.reset(seed=0)
+    assert set(obs["pixels"]) == set(CAMERAS)
+    for img in obs["pixels"].values():
+        assert img.shape == (128, 128, 3) and img.dtype == np.uint8
+    assert obs["agent_pos"].shape == (19,) and obs["agent_pos"].dtype == np.float32
+    assert env.task_description().startswith("pick up the ")
+    assert env._max_episode_steps == 5
+    obs, reward, terminated, truncated, info = env.step(np.zeros(5, dtype=np.float32))
+    assert isinstance(reward, float) and isinstance(terminated, bool) and isinstance(info["is_success"], bool)
+    env.close()
+
+
+def _tiny_act(path: Path) -> None:
+    from lerobot.configs.types import FeatureType, PolicyFeature
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.act.modeling_act import ACTPolicy
+    from lerobot.policies.factory import make_pre_post_processors
+
+    features = {f"observation.images.{c}": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 128, 128)) for c in CAMERAS}
+    features["observation.state"] = PolicyFeature(type=FeatureType.STATE, shape=(19,))
+    cfg = ACTConfig(
+        input_features=features,
+        output_features={"action": PolicyFeature(type=FeatureType.ACTION, shape=(5,))},
+        dim_model=32, n_heads=2, dim_feedforward=64, n_encoder_layers=1, n_decoder_layers=1,
+        chunk_size=5, n_action_steps=5, pretrained_backbone_weights=None, use_vae=False, push_to_hub=False, device="cpu",
+    )
+    torch.manual_seed(0)
+    ACTPolicy(cfg).save_pretrained(path)
+    pre, post = make_pre_post_processors(cfg, dataset_stats=None)
+    pre.save_pretrained(path)
+    post.save_pretrained(path)
+
+
+def test_lerobot_eval_runs_a_random_act_policy_offline(tmp_path):
+    _tiny_act(tmp_path / "policy")
+    lerobot_eval = shutil.which("lerobot-eval", path=os.path.dirname(sys.executable))
+    env = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
+    result = subprocess.run(
+        [
+            lerobot_eval, f"--policy.path={tmp_path / 'policy'}", "--policy.device=cpu", "--env.type=aerobench",
+            "--env.task=TidyHouse/pick", "--env.episode_length=6", "--eval.n_episodes=2", "--eval.batch_size=1",
+            f"--output_dir={tmp_path / 'eval'}",
+        ],
+        capture_output=True, text=True, timeout=600, env=env,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    info = json.loads((tmp_path / "eval" / "eval_info.json").read_text())
+    assert info["overall"]["n_episodes"] == 2
