@@ -71,7 +71,8 @@ def _add_demo(sub) -> None:
     p = sub.add_parser("demo", help="the gripper platform flies a waypoint square carrying a payload in a room")
     p.add_argument("--out", default="outputs/demo", help="folder for video.mp4, flight.png, metrics.json")
     p.add_argument("--payload-kg", type=float, default=0.37)
-    p.add_argument("--no-video", action="store_true", help="skip rendering the video")
+    p.add_argument("--no-video", action="store_true", help="skip rendering the videos")
+    p.add_argument("--rollout-steps", type=int, default=60, help="length of the random-policy rollout video")
     p.set_defaults(func=_run_demo)
 
 
@@ -94,8 +95,37 @@ def _run_demo(args) -> int:
     (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2) + "\n")
     _print_metrics(result.metrics, as_json=False)
     written = [p.name for p in (out / "video.mp4", out / "flight.png", out / "metrics.json") if p.exists()]
+    written += _demo_world(out, args)
     print(f"wrote {', '.join(written)} to {out}/")
     return 0
+
+
+DEMO_STARTS = (
+    ("AeroPick-v1", {"setting": "TidyHouse"}),
+    ("AeroPick-v1", {"setting": "PrepareGroceries"}),
+    ("AeroOpen-v1", {"setting": "PrepareGroceries", "fixture": "fridge"}),
+    ("AeroSequential-v1", {"setting": "PackageDelivery"}),
+    ("AeroSequential-v1", {"setting": "LongHorizonRearrangement"}),
+)
+
+
+def _demo_world(out: Path, args) -> list[str]:
+    """Each setting's start as a picture, and a short random-policy rollout as a video."""
+    import imageio.v2 as imageio
+
+    from .envs.views import random_rollout_frames, render_env
+    from .flight.runner import write_video
+
+    written = []
+    for env_id, kwargs in DEMO_STARTS:
+        name = f"start_{kwargs['setting']}_{env_id.removeprefix('Aero').removesuffix('-v1').lower()}.png"
+        imageio.imwrite(out / name, render_env(env_id, seed=0, **kwargs))
+        written.append(name)
+    if not args.no_video:
+        frames = random_rollout_frames("AeroPick-v1", steps=args.rollout_steps, seed=0, setting="TidyHouse")
+        write_video(frames, out / "random_rollout.mp4", fps=10)
+        written.append("random_rollout.mp4")
+    return written
 
 
 AERO_ENV_IDS = ("AeroPick-v1", "AeroPlace-v1", "AeroNav-v1", "AeroOpen-v1", "AeroClose-v1", "AeroSequential-v1", "AeroFly-v1")

@@ -42,3 +42,25 @@ def test_hover_json_video_and_plot(tmp_path):
     assert {"max_drift_m", "max_tilt_deg"} <= set(metrics)
     assert metrics["scenario"] == "hover" and metrics["seconds"] == pytest.approx(1.0)
     assert video.stat().st_size > 1000 and plot.stat().st_size > 1000
+
+
+def test_render_writes_the_views_picture(tmp_path):
+    out = tmp_path / "pick.png"
+    r = _run("render", "--env", "AeroPick-v1", "--setting", "PrepareGroceries", "--object", "bowl", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    import imageio.v2 as imageio
+
+    picture = imageio.imread(out)
+    assert picture.shape == (384, 960, 3) and picture.std() > 5
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--env", "AeroDance-v1"], "aerobench render: error: unknown env 'AeroDance-v1'; valid envs: AeroPick-v1, AeroPlace-v1, AeroNav-v1, AeroOpen-v1, AeroClose-v1, AeroSequential-v1, AeroFly-v1"),
+        (["--setting", "PrepareGroceries", "--object", "cracker_box"], "aerobench render: error: object 'cracker_box' is not part of PrepareGroceries; its objects are: master_chef_can, sugar_box, tomato_soup_can, tuna_fish_can, pudding_box, gelatin_box, potted_meat_can, bowl"),
+    ],
+)
+def test_render_bad_names(tmp_path, args, message):
+    r = _run("render", *args, "--out", str(tmp_path / "x.png"))
+    assert r.returncode == 2 and r.stderr.strip() == message

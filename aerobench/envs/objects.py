@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from types import MappingProxyType
 from typing import Literal
 
@@ -118,17 +119,27 @@ def build_object(
     name: str,
     initial_pose: sapien.Pose | None = None,
     scene_idxs: list[int] | None = None,
+    mesh_dir: Path | None = None,
 ) -> Actor:
     """A dynamic actor whose origin is at the bottom centre of the object (so it rests at z = 0 on a support).
 
     `scene_idxs` builds it only in those parallel envs (objects differ per env; merge them with `Actor.merge`).
+    `mesh_dir`: a YCB model folder (`collision.ply`, `textured.obj`) to use instead of the primitive shape; the
+    mesh is shifted so its bounding box's bottom centre is the origin, and the spec's mass is kept.
     """
     builder = scene.create_actor_builder()
     if scene_idxs is not None:
         builder.set_scene_idxs(scene_idxs)
     material = sapien.physx.PhysxMaterial(OBJECT_FRICTION, OBJECT_FRICTION, 0.0)
     h = spec.height_m
-    if spec.shape == "cylinder":
+    if mesh_dir is not None:
+        import trimesh
+
+        bounds = trimesh.load(str(mesh_dir / "collision.ply"), force="mesh").bounds
+        offset = sapien.Pose(p=[-(bounds[0][0] + bounds[1][0]) / 2, -(bounds[0][1] + bounds[1][1]) / 2, -bounds[0][2]])
+        builder.add_multiple_convex_collisions_from_file(str(mesh_dir / "collision.ply"), pose=offset, material=material)
+        builder.add_visual_from_file(str(mesh_dir / "textured.obj"), pose=offset)
+    elif spec.shape == "cylinder":
         pose = sapien.Pose(p=[0, 0, h / 2], q=[math.cos(-math.pi / 4), 0, math.sin(-math.pi / 4), 0])  # x -> z
         builder.add_cylinder_collision(pose=pose, radius=spec.size_m[0] / 2, half_length=h / 2, material=material)
         builder.add_cylinder_visual(pose=pose, radius=spec.size_m[0] / 2, half_length=h / 2, material=spec.color)

@@ -46,6 +46,12 @@ def compose_views(sensor_data: dict, third_person: np.ndarray, title: str = "") 
     return np.concatenate([left, right], 1)
 
 
+def _compose_from_obs(env, obs) -> np.ndarray:
+    sensors = {c: {k: v[0].cpu().numpy() for k, v in obs["sensor_data"][c].items()} for c in CAMERAS}
+    third = env.render()[0].cpu().numpy().astype(np.uint8)
+    return compose_views(sensors, third, env.unwrapped.get_instruction(0))
+
+
 def render_env(env_id: str, seed: int = 0, **kwargs) -> np.ndarray:
     """Reset `env_id` with `seed` and return the composed picture `(H, W, 3)` uint8."""
     import aerobench.envs  # noqa: F401
@@ -53,8 +59,28 @@ def render_env(env_id: str, seed: int = 0, **kwargs) -> np.ndarray:
     env = gym.make(env_id, obs_mode="rgbd", render_mode="rgb_array", **kwargs)
     try:
         obs, _ = env.reset(seed=seed)
-        sensors = {c: {k: v[0].cpu().numpy() for k, v in obs["sensor_data"][c].items()} for c in CAMERAS}
-        third = env.render()[0].cpu().numpy().astype(np.uint8)
-        return compose_views(sensors, third, env.unwrapped.get_instruction(0))
+        return _compose_from_obs(env, obs)
+    finally:
+        env.close()
+
+
+def random_rollout_frames(env_id: str, steps: int, seed: int = 0, hold: int = 5, **kwargs) -> list[np.ndarray]:
+    """Composed pictures of a random-policy rollout: a uniform random action, held for `hold` control steps."""
+    import aerobench.envs  # noqa: F401
+
+    env = gym.make(env_id, obs_mode="rgbd", render_mode="rgb_array", **kwargs)
+    try:
+        obs, _ = env.reset(seed=seed)
+        env.action_space.seed(seed)
+        frames = [_compose_from_obs(env, obs)]
+        action = env.action_space.sample()
+        for k in range(steps):
+            if k % hold == 0:
+                action = env.action_space.sample()
+            obs, _, terminated, truncated, _ = env.step(action)
+            frames.append(_compose_from_obs(env, obs))
+            if bool(terminated[0]) or bool(truncated[0]):
+                break
+        return frames
     finally:
         env.close()

@@ -22,3 +22,17 @@ def test_batched_gpu_hover(platform):
     drift = (base.agent.airframe_state().position - start).norm(dim=-1)
     assert drift.max() < 0.01
     env.close()
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("env_id, kwargs", [("AeroPick-v1", {"setting": "TidyHouse"}), ("AeroOpen-v1", {"setting": "PrepareGroceries"})])
+def test_skill_envs_batch_on_gpu(env_id, kwargs):
+    env = gym.make(env_id, obs_mode="state_dict", sim_backend="physx_cuda", num_envs=16, **kwargs)
+    obs, info = env.reset(seed=0)
+    assert obs["agent"]["state"].shape[0] == 16 and info["success"].shape == (16,)
+    base = env.unwrapped
+    action = torch.zeros(16, base.platform.action_dim, device=base.device)
+    for _ in range(5):
+        obs, _, _, _, info = env.step(action)
+    assert torch.isfinite(obs["agent"]["state"]).all()
+    env.close()

@@ -7,7 +7,8 @@ evaluator add its own, latches failures, and hands the payload / contact-mode sw
 
 Args (besides ManiSkill's `num_envs`, `obs_mode`, `sim_backend`, ...): `setting` (TidyHouse | PrepareGroceries |
 PackageDelivery | LongHorizonRearrangement), `object` (one of the setting's objects; default: sampled per env),
-`platform` (gripper | arm; default per skill), `controller` (payload-aware | nominal), `num_distractors`.
+`platform` (gripper | arm; default per skill), `controller` (payload-aware | nominal), `num_distractors`,
+`real_assets` ("ycb": YCB meshes for the objects) and `assets_dir` (see `assets.py`).
 On one CPU env the layout is regenerated every episode; with parallel envs (GPU) each env keeps its layout until
 `reset(options={"reconfigure": True})` (ManiSkill's `reconfiguration_freq` overrides either default).
 """
@@ -25,6 +26,7 @@ from mani_skill.utils import sapien_utils
 from mani_skill.utils.structs import Actor, Pose
 
 from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
+from ..assets import YCB_IDS, parse_real_assets, replicacad_dir, ycb_model_dir
 from ..base_env import AerialEnv
 from ..checks import (
     FailureCause,
@@ -108,8 +110,14 @@ class AeroSkillEnv(AerialEnv):
         platform: str | None = None,
         num_distractors: int = 2,
         reconfiguration_freq: int | None = None,
+        real_assets: str | tuple[str, ...] = (),
+        assets_dir: str | None = None,
         **kwargs,
     ):
+        self.real_assets = parse_real_assets(real_assets)
+        self.assets_dir = assets_dir
+        if "replicacad" in self.real_assets:
+            replicacad_dir(assets_dir)  # one-line error: missing, or not supported yet
         self.setting: TaskSetting = get_setting(setting)
         self._check_setting()
         if object is not None:
@@ -160,8 +168,14 @@ class AeroSkillEnv(AerialEnv):
         self.evaluators = self._make_evaluators()
 
     def _build_per_env(self, specs: list[ObjectSpec], name: str) -> Actor:
+        def mesh(spec: ObjectSpec):
+            use_ycb = "ycb" in self.real_assets and spec.name in YCB_IDS
+            return ycb_model_dir(spec.name, self.assets_dir) if use_ycb else None
+
         actors = [
-            build_object(self.scene, spec, f"{name}_{i}", sapien.Pose(p=[0, 0, PARKING_DEPTH_M - i]), scene_idxs=[i])
+            build_object(
+                self.scene, spec, f"{name}_{i}", sapien.Pose(p=[0, 0, PARKING_DEPTH_M - i]), scene_idxs=[i], mesh_dir=mesh(spec)
+            )
             for i, spec in enumerate(specs)
         ]
         return Actor.merge(actors, name=name)
