@@ -73,6 +73,7 @@ def _add_demo(sub) -> None:
     p.add_argument("--payload-kg", type=float, default=0.37)
     p.add_argument("--no-video", action="store_true", help="skip rendering the videos")
     p.add_argument("--rollout-steps", type=int, default=60, help="length of the random-policy rollout video")
+    p.add_argument("--demo-episodes", type=int, default=4, help="expert episodes generated and exported")
     p.set_defaults(func=_run_demo)
 
 
@@ -113,7 +114,7 @@ def _demo_world(out: Path, args) -> list[str]:
     """Each setting's start as a picture, and a short random-policy rollout as a video."""
     import imageio.v2 as imageio
 
-    from .envs.views import random_rollout_frames, render_env
+    from .envs.views import render_env, rollout_frames
     from .flight.runner import write_video
 
     written = []
@@ -122,10 +123,34 @@ def _demo_world(out: Path, args) -> list[str]:
         imageio.imwrite(out / name, render_env(env_id, seed=0, **kwargs))
         written.append(name)
     if not args.no_video:
-        frames = random_rollout_frames("AeroPick-v1", steps=args.rollout_steps, seed=0, setting="TidyHouse")
+        frames = rollout_frames("AeroPick-v1", steps=args.rollout_steps, seed=0, setting="TidyHouse")
         write_video(frames, out / "random_rollout.mp4", fps=10)
-        written.append("random_rollout.mp4")
+        frames = rollout_frames("AeroPick-v1", steps=400, seed=0, policy="expert", every=2, setting="TidyHouse")
+        write_video(frames, out / "expert_pick.mp4", fps=10)
+        written += ["random_rollout.mp4", "expert_pick.mp4"]
+    written.append(_demo_dataset(out / "dataset", args.demo_episodes))
     return written
+
+
+def _demo_dataset(root: Path, episodes: int) -> str:
+    """A handful of expert Pick and Place episodes in TidyHouse, exported, with their outcome summary."""
+    import shutil
+
+    from .export import DatasetSink
+    from .export.tools import dataset_info, format_info
+    from .rollout.runner import RolloutRunner, RolloutSpec
+
+    spec = RolloutSpec(setting="TidyHouse", skills=("pick", "place"), episodes=episodes, seed=0)
+    if root.exists():  # the demo always shows a fresh dataset
+        shutil.rmtree(root)
+    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"}, keep=None, part_size=episodes)
+    print(f"generating {episodes} expert episodes (TidyHouse pick, place) into {root} ...", flush=True)
+    RolloutRunner(spec, sink, on_episode=lambda ep, p: print(
+        f"  episode {ep.record.episode_index}: {ep.record.skill} {ep.record.object}: {ep.record.outcome} ({ep.record.mode}), "
+        f"{ep.record.steps} steps", flush=True)).run()
+    sink.close()
+    print(format_info(dataset_info(root)))
+    return "dataset/"
 
 
 AERO_ENV_IDS = ("AeroPick-v1", "AeroPlace-v1", "AeroNav-v1", "AeroOpen-v1", "AeroClose-v1", "AeroSequential-v1", "AeroFly-v1")
@@ -172,12 +197,226 @@ def _print_metrics(metrics: dict, as_json: bool) -> None:
         print(json.dumps(clean))
 
 
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        i, k = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--shard must look like 0/4, got {text!r}") from None
+    return i, k
+
+
+def _csv(text: str) -> tuple[str, ...]:
+    return tuple(v.strip() for v in text.split(",") if v.strip())
+
+
+def _add_generate(sub) -> None:
+    p = sub.add_parser("generate", help="generate annotated demonstrations and export them as a LeRobotDataset v3")
+    p.add_argument("--setting", required=True, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
+    p.add_argument("--skills", type=_csv, required=True, help="comma-separated skills (pick,place,...) or one chain")
+    p.add_argument("--episodes", type=int, required=True)
+    p.add_argument("--objects", type=_csv, default=None, help="comma-separated objects (default: all of the setting's)")
+    p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only; CPU: use --shard)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--shard", type=_shard, default=(0, 1), help="i/k: this process runs episode indices i, i+k, ...")
+    p.add_argument("--keep", choices=("success", "all"), default="success", help="which episodes enter the dataset")
+    p.add_argument("--policy", default="expert", help="expert (default) or random")
+    p.add_argument("--platform", default=None, help="gripper or arm (default: the skill's)")
+    p.add_argument("--controller", default="payload-aware", help="payload-aware or nominal")
+    p.add_argument("--no-cameras", action="store_true", help="state-only episodes (much faster; no image features)")
+    p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
+    p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
+    p.add_argument("--out", required=True, help="dataset folder (LeRobotDataset root)")
+    p.set_defaults(func=_run_generate)
+
+
+def _run_generate(args) -> int:
+    from .export import DatasetSink
+    from .rollout.runner import RolloutRunner, RolloutSpec
+
+    try:
+        spec = RolloutSpec(
+            setting=args.setting, skills=args.skills, episodes=args.episodes, objects=args.objects,
+            num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, platform=args.platform,
+            controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
+        )
+        from .envs.control.payload import ControllerMode
+        from .policies.registry import POLICIES, make_policy  # noqa: F401
+
+        ControllerMode.parse(args.controller)
+        if args.platform:
+            from .envs.platforms import get_platform
+
+            get_platform(args.platform)
+        sink_spec = {**spec.as_dict(), "keep": args.keep}
+        keep = (lambda r: r.outcome == "S") if args.keep == "success" else None
+        sink = DatasetSink(Path(args.out), sink_spec, keep=keep, part_size=args.part_size)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    bar = _progress_bar(spec)
+    runner = RolloutRunner(spec, sink, on_episode=lambda ep, progress: bar(progress))
+    try:
+        progress = runner.run()
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    sink.close()
+    bar(progress, final=True)
+    print(f"{progress.done} of {progress.total} episodes in {args.out} (this shard); success {progress.successes} "
+          f"of {progress.run_done} run now")
+    return 0
+
+
+def _progress_bar(spec):
+    from tqdm import tqdm
+
+    state = {}
+
+    def update(progress, final: bool = False):
+        bar = state.get("bar")
+        if bar is None:
+            bar = state["bar"] = tqdm(total=progress.total, initial=progress.done - progress.run_done, unit="ep",
+                                      desc=f"{spec.setting} {','.join(spec.skills)}", dynamic_ncols=True)
+        bar.n = progress.done
+        rate = progress.successes / progress.run_done if progress.run_done else 0.0
+        bar.set_postfix_str(f"success {progress.successes}/{progress.run_done} ({rate:.0%}), {progress.rate_per_min:.1f} ep/min")
+        bar.refresh()
+        if final:
+            bar.close()
+
+    return update
+
+
+def _add_dataset(sub) -> None:
+    p = sub.add_parser("dataset", help="inspect, merge or filter an exported dataset")
+    verbs = p.add_subparsers(dest="verb", required=True, parser_class=_Parser)
+    info = verbs.add_parser("info", help="episode counts by setting, skill, object, outcome and mode")
+    info.add_argument("root")
+    info.set_defaults(func=_run_dataset_info)
+    merge = verbs.add_parser("merge", help="merge the parts (and shards) of a dataset folder into its LeRobot dataset")
+    merge.add_argument("root")
+    merge.set_defaults(func=_run_dataset_merge)
+    filt = verbs.add_parser("filter", help="a new dataset with only the matching episodes")
+    filt.add_argument("root")
+    filt.add_argument("--out", required=True)
+    filt.add_argument("--outcome", type=_csv, default=None, help="S, F, T")
+    filt.add_argument("--mode", type=_csv, default=None)
+    filt.add_argument("--skill", type=_csv, default=None)
+    filt.add_argument("--object", type=_csv, default=None)
+    filt.set_defaults(func=_run_dataset_filter)
+
+
+def _dataset_root(text: str) -> Path:
+    root = Path(text)
+    if not root.is_dir():
+        raise UserError(f"no dataset folder at {root}")
+    return root
+
+
+def _run_dataset_info(args) -> int:
+    from .export.tools import dataset_info, format_info
+
+    try:
+        print(format_info(dataset_info(_dataset_root(args.root))))
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    return 0
+
+
+def _run_dataset_merge(args) -> int:
+    from .export.tools import merge
+
+    try:
+        out = merge(_dataset_root(args.root))
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"merged into {out}" if out else "no kept episode to merge")
+    return 0
+
+
+def _run_dataset_filter(args) -> int:
+    from .export.tools import filter_dataset
+
+    try:
+        out = filter_dataset(_dataset_root(args.root), Path(args.out), outcomes=args.outcome, modes=args.mode,
+                             skills=args.skill, objects=args.object)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"wrote {out}")
+    return 0
+
+
+def _add_eval(sub) -> None:
+    p = sub.add_parser("eval", help="evaluate a policy per skill x object; writes records.jsonl and results.json")
+    p.add_argument("--policy", required=True, help="a registered policy: expert, random, bc, ppo, act, diffusion, pi0, pi05")
+    p.add_argument("--checkpoint", default=None, help="checkpoint folder of a trained policy")
+    p.add_argument("--setting", required=True, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
+    p.add_argument("--skills", type=_csv, default=("pick", "place"), help="comma-separated skills, or one chain")
+    p.add_argument("--objects", type=_csv, default=None, help="comma-separated objects (default: all of the setting's)")
+    p.add_argument("--episodes-per-object", type=int, default=50)
+    p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--video", type=int, default=0, help="write rollout videos of the first N episodes (renders cameras)")
+    p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
+    p.add_argument("--label", default=None, help="leaderboard row name (default: the policy name)")
+    p.add_argument("--dataset-revision", default=None, help="the training dataset's revision, kept in the provenance")
+    p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
+    p.set_defaults(func=_run_eval)
+
+
+def _run_eval(args) -> int:
+    from .eval.evaluate import EvalConfig, evaluate, format_table
+    from .policies import policy_needs_images
+
+    config = EvalConfig(
+        policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
+        episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
+        seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
+        dataset_revision=args.dataset_revision,
+    )
+    try:
+        policy_needs_images(args.policy, args.checkpoint)  # unknown names and bad checkpoints fail before any work
+        spec = config.rollout_spec(record_cameras=False)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    bar = _progress_bar(spec)
+    try:
+        results = evaluate(config, args.out, on_episode=lambda ep, progress: bar(progress),
+                           command="aerobench " + " ".join(sys.argv[1:]))
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(format_table(results))
+    print(f"wrote {Path(args.out) / 'results.json'}")
+    return 0
+
+
+def _add_leaderboard(sub) -> None:
+    p = sub.add_parser("leaderboard", help="render Markdown, LaTeX and HTML leaderboards from results files")
+    p.add_argument("results", nargs="+", help="results.json files written by aerobench eval")
+    p.add_argument("--out", default="leaderboards", help="output folder")
+    p.set_defaults(func=_run_leaderboard)
+
+
+def _run_leaderboard(args) -> int:
+    from .eval.leaderboard import build_leaderboard
+
+    try:
+        written = build_leaderboard(args.results, args.out)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print("wrote " + ", ".join(str(p) for p in written.values()))
+    print(f"HTML leaderboard: {Path(args.out) / 'index.html'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="aerobench", description="aerobench: aerial manipulation benchmark (see README.md)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_fly(sub)
     _add_demo(sub)
     _add_render(sub)
+    _add_generate(sub)
+    _add_dataset(sub)
+    _add_eval(sub)
+    _add_leaderboard(sub)
     return parser
 
 
@@ -190,6 +429,9 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as e:
         print(f"aerobench {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"aerobench {args.command}: interrupted; run the same command again to continue", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

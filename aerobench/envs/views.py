@@ -64,21 +64,23 @@ def render_env(env_id: str, seed: int = 0, **kwargs) -> np.ndarray:
         env.close()
 
 
-def random_rollout_frames(env_id: str, steps: int, seed: int = 0, hold: int = 5, **kwargs) -> list[np.ndarray]:
-    """Composed pictures of a random-policy rollout: a uniform random action, held for `hold` control steps."""
+def rollout_frames(env_id: str, steps: int, seed: int = 0, policy: str = "random", every: int = 1, **kwargs) -> list[np.ndarray]:
+    """Composed pictures of one episode of `policy` (a registered policy name), every `every` control steps."""
+    import torch
+
     import aerobench.envs  # noqa: F401
+    from aerobench.policies import make_policy
 
     env = gym.make(env_id, obs_mode="rgbd", render_mode="rgb_array", **kwargs)
     try:
         obs, _ = env.reset(seed=seed)
-        env.action_space.seed(seed)
+        actor = make_policy(policy, env.unwrapped, seed=seed) if policy == "random" else make_policy(policy, env.unwrapped)
+        actor.reset(torch.arange(1))
         frames = [_compose_from_obs(env, obs)]
-        action = env.action_space.sample()
         for k in range(steps):
-            if k % hold == 0:
-                action = env.action_space.sample()
-            obs, _, terminated, truncated, _ = env.step(action)
-            frames.append(_compose_from_obs(env, obs))
+            obs, _, terminated, truncated, _ = env.step(actor.act(obs))
+            if k % every == 0:
+                frames.append(_compose_from_obs(env, obs))
             if bool(terminated[0]) or bool(truncated[0]):
                 break
         return frames

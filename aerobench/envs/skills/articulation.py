@@ -34,6 +34,7 @@ AT_HANDLE_M = 0.03  # approach done: tool centre point this close to the handle'
 SLIP_STEPS = 3  # handle contact lost this many steps during the drive: slip
 PHASE_LIMIT_STEPS = {"approach": 400, "pinch": 40, "drive": 600}  # 20 s, 2 s, 30 s
 CLOSE_START_Q_BAR = (0.85, 1.0)  # Close episodes start this far open
+START_CONE_COS = 0.5  # starts lie within 60 deg of the handle's outward normal
 
 
 def advance_phase(
@@ -92,6 +93,10 @@ class ArticulationEvaluator(SkillEvaluator):
     def progress(self) -> torch.Tensor:
         """Normalized articulation progress q_bar `(N,)` of each env's fixture."""
         return self._per_env([articulated.normalized_progress(f) for f in self.fixtures])
+
+    def handle_normal(self) -> torch.Tensor:
+        """Outward normal `(N, 3)` of each env's door or drawer front at the handle."""
+        return self._per_env([articulated.front_normal(n, f) for n, f in zip(self.names, self.fixtures)])
 
     def handle_point(self) -> torch.Tensor:
         return self._per_env([articulated.handle_grasp_point(n, f) for n, f in zip(self.names, self.fixtures)])
@@ -203,8 +208,11 @@ class _ArticulationEnv(AeroSkillEnv):
     def _sample_episode(self, env_idx):
         ev = self.evaluators[0]
         ok = ev.sample(env_idx)
+        normal = ev.handle_normal()[env_idx]
+        # in front of the handle, already facing the door: the arm reaches straight at it
         position, yaw, free = self.sample_start(
-            env_idx, ev.anchor(env_idx), torch.full((len(env_idx),), -1e9, device=self.device), face_anchor=True
+            env_idx, ev.anchor(env_idx), torch.full((len(env_idx),), -1e9, device=self.device),
+            heading=torch.atan2(-normal[:, 1], -normal[:, 0]), within_cone=(normal, START_CONE_COS),
         )
         self.set_drone(env_idx, position, yaw)
         ev.begin(env_idx)

@@ -8,7 +8,8 @@ evaluator add its own, latches failures, and hands the payload / contact-mode sw
 Args (besides ManiSkill's `num_envs`, `obs_mode`, `sim_backend`, ...): `setting` (TidyHouse | PrepareGroceries |
 PackageDelivery | LongHorizonRearrangement), `object` (one of the setting's objects; default: sampled per env),
 `platform` (gripper | arm; default per skill), `controller` (payload-aware | nominal), `num_distractors`,
-`real_assets` ("ycb": YCB meshes for the objects) and `assets_dir` (see `assets.py`).
+`real_assets` ("ycb": YCB meshes for the objects) and `assets_dir` (see `assets.py`). `reset(options=...)` takes
+`"object"` or `"objects"` (one per env) with `"reconfigure": True` to choose the objects of the next layout.
 On one CPU env the layout is regenerated every episode; with parallel envs (GPU) each env keeps its layout until
 `reset(options={"reconfigure": True})` (ManiSkill's `reconfiguration_freq` overrides either default).
 """
@@ -38,6 +39,7 @@ from ..checks import (
     support_force,
 )
 from ..contacts import ContactReader, ContactReadout
+from ..control.arm import arm_point_positions_body
 from ..control.so3 import quat_wxyz_to_matrix
 from ..control.virtual_joints import AirframeState
 from ..geometry import (
@@ -152,7 +154,13 @@ class AeroSkillEnv(AerialEnv):
         self.target_specs: list[ObjectSpec] = []
         self.distractors: list[Actor] = []
         if self.uses_object:
-            names = [self.object_name or str(rng.choice(self.setting.objects)) for rng in rngs]
+            requested = options.get("objects") or ([options["object"]] * self.num_envs if options.get("object") else None)
+            if requested is not None:
+                if len(requested) != self.num_envs:
+                    raise ValueError(f"options['objects'] needs one object per env ({self.num_envs}), got {len(requested)}")
+                for name in requested:
+                    self.setting.check_object(name)
+            names = list(requested) if requested else [self.object_name or str(rng.choice(self.setting.objects)) for rng in rngs]
             self.target_specs = [get_object(n) for n in names]
             self.target = self._build_per_env(self.target_specs, "target")
             for slot in range(self.num_distractors):
@@ -165,6 +173,11 @@ class AeroSkillEnv(AerialEnv):
         self.camera_rig = rig.build_kinematic(name="camera_rig")
         self.proxy_points, self.proxy_radius = drone_proxy_points_body(self.platform)
         self.proxy_points = self.proxy_points.to(self.device)
+        self.start_proxy_points = self.proxy_points
+        if self.platform.arm is not None:  # starts also keep the arm (at its rest pose) clear of the furniture
+            arm = arm_point_positions_body(torch.tensor([self.platform.arm.working_pose_rad]), self.platform.arm)
+            extra = torch.cat([arm[k] for k in ("elbow", "wrist", "grasp")], 0).to(self.device)
+            self.start_proxy_points = torch.cat([self.proxy_points, extra], 0)
         self.evaluators = self._make_evaluators()
 
     def _build_per_env(self, specs: list[ObjectSpec], name: str) -> Actor:
@@ -297,19 +310,26 @@ class AeroSkillEnv(AerialEnv):
         distance: tuple[float, float] = START_DISTANCE_M,
         reject=None,
         from_airframe: bool = False,
+        heading: torch.Tensor | None = None,
+        within_cone: tuple[torch.Tensor, float] | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """A collision-free level start with the tool centre point `distance` from `anchor` `(M, 3)`.
 
         Returns the airframe position `(M, 3)`, heading `(M,)` and whether a free start was found `(M,)`.
         `carried_points` `(M, Q, 3)` are points of a held object relative to the tool centre point (world axes);
         `reject(tcp (M, K, 3)) -> (M, K)` vetoes candidates; `from_airframe` measures the distance from the
-        airframe centre instead of the tool centre point (navigation targets).
+        airframe centre instead of the tool centre point (navigation targets); `heading` `(M,)` fixes the yaw;
+        `within_cone` (axis `(M, 3)`, min cosine) keeps the start in front of the anchor (a door's outward normal).
         """
         m, k = len(env_idx), START_CANDIDATES
         dev = self.device
         direction = torch.randn(m, k, 3, device=dev)
         direction[..., 2] = direction[..., 2].abs() * 0.6  # starts from level to well above the target
         direction = direction / torch.linalg.norm(direction, dim=-1, keepdim=True)
+        if within_cone is not None:  # mirror candidates behind the anchor to its front
+            axis, _ = within_cone
+            along = (direction * axis[:, None]).sum(-1, keepdim=True)
+            direction = torch.where(along < 0, direction - 2 * along * axis[:, None], direction)
         dist = distance[0] + torch.rand(m, k, 1, device=dev) * (distance[1] - distance[0])
         tcp = anchor[:, None, :] + dist * direction
         yaw = (torch.rand(m, k, device=dev) * 2 - 1) * math.pi
@@ -317,6 +337,8 @@ class AeroSkillEnv(AerialEnv):
         if face_anchor:  # the arm reaches forward: look at the anchor
             to_anchor = anchor[:, None, :2] - tcp[..., :2]
             yaw = torch.atan2(to_anchor[..., 1], to_anchor[..., 0])
+        if heading is not None:
+            yaw = heading[:, None].expand(m, k)
         c, s = torch.cos(yaw), torch.sin(yaw)
         rotated = torch.stack([c * offset[0] - s * offset[1], s * offset[0] + c * offset[1], offset[2].expand_as(c)], -1)
         if from_airframe:
@@ -324,7 +346,7 @@ class AeroSkillEnv(AerialEnv):
         else:
             airframe = tcp - rotated
         boxes = self.obstacle_boxes(env_idx)
-        free = is_pose_free(airframe, yaw, boxes, self.proxy_points, START_CLEARANCE_M + self.proxy_radius)
+        free = is_pose_free(airframe, yaw, boxes, self.start_proxy_points, START_CLEARANCE_M + self.proxy_radius)
         lo, hi = self.workspace_lo[env_idx][:, None], self.workspace_hi[env_idx][:, None]
         free &= (airframe[..., :2] > lo[..., :2] + 0.4).all(-1) & (airframe[..., :2] < hi[..., :2] - 0.4).all(-1)
         free &= (airframe[..., 2] > lo[..., 2] + self.safety.min_altitude_m + 0.1)
@@ -332,6 +354,9 @@ class AeroSkillEnv(AerialEnv):
         free &= tcp[..., 2] >= min_tcp_height[:, None]
         if reject is not None:
             free &= ~reject(tcp)
+        if within_cone is not None:
+            axis, min_cos = within_cone
+            free &= (direction * axis[:, None]).sum(-1) >= min_cos
         if carried_points is not None:
             pts = (tcp[:, :, None, :] + carried_points[:, None]).reshape(m, -1, 3)
             d = point_box_distance(pts, boxes).reshape(m, k, -1)

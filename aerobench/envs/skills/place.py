@@ -18,7 +18,8 @@ PLACE_ALIGN_M = 0.05  # horizontal alignment tolerance: the event t_o
 PLACE_GOAL_RADIUS_M = 0.10  # goal region around the goal point
 PLACE_REST_TOLERANCE_M = 0.02  # "resting height": object bottom this close to the goal support's surface
 OBJECT_STILL_MPS = 0.05
-GRIPPER_OPEN_MARGIN_M = 0.01  # open: the pads at least this much wider than the object's grasp width
+GRIPPER_OPEN_MARGIN_M = 0.01  # open: the pads at least this much wider than the object's grasp width ...
+GRIPPER_FULLY_OPEN_SLACK_M = 0.003  # ... or fully open (the master chef can leaves only 8 mm)
 PLACE_CLEARANCE_M = 0.27  # spec: gripper more than 0.27 m from the object
 PLATFORM_STABLE_MPS = 0.025  # spec: platform speed below 0.025 m/s ...
 PLATFORM_STABLE_STEPS = 20  # ... for 20 consecutive control steps
@@ -73,7 +74,8 @@ class PlaceEvaluator(SkillEvaluator):
         support_contact = ctx.is_supported & at_height & on_goal_support
         object_still = torch.linalg.norm(ctx.object_velocity, dim=-1) < OBJECT_STILL_MPS
         placed = (horizontal < PLACE_GOAL_RADIUS_M) & ctx.is_upright & object_still & support_contact
-        gripper_open = ctx.gripper_opening > env.target_grasp_width + GRIPPER_OPEN_MARGIN_M
+        wide_open = env.platform.gripper.max_opening_m - GRIPPER_FULLY_OPEN_SLACK_M
+        gripper_open = ctx.gripper_opening > torch.clamp(env.target_grasp_width + GRIPPER_OPEN_MARGIN_M, max=wide_open)
         release = support_contact & ~ctx.is_grasp_held & gripper_open
         self.released = self.keep(mine, self.released | release, self.released)
         clear = torch.linalg.norm(ctx.tcp - ctx.grasp_point, dim=-1) > PLACE_CLEARANCE_M

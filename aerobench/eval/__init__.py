@@ -1,0 +1,6 @@
+"""The benchmark: batched evaluation of any registered policy, statistics, trajectory metrics and leaderboards.
+
+`evaluate` runs the shared rollout runner into a JSONL record sink and writes a versioned results JSON;
+`stats` holds the SE / Wilson / paired tests; `results` turns records into per skill x object cells;
+`metrics` the spec's trajectory-diversity and time-to-success measures; `leaderboard` renders results files.
+"""

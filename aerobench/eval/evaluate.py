@@ -1,0 +1,114 @@
+"""`aerobench eval`: a policy on a setting's skill x object grid, per-episode records, then the results JSON.
+
+Episodes are the rollout runner's seeded plan with `episodes_per_object` episodes per skill-object pair, so two
+policies evaluated with the same seed see the same starts (which makes the paired comparison in `stats` valid).
+Records are appended as episodes finish; running the same command again continues an interrupted evaluation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..envs.tasks import get_setting
+from ..rollout.episode import CAMERAS, EpisodeData
+from ..rollout.records import RecordSink, read_records
+from ..rollout.runner import Progress, RolloutRunner, RolloutSpec
+from .results import summarize, write_results
+
+RESULTS_FILE = "results.json"
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    policy: str
+    setting: str
+    skills: tuple[str, ...] = ("pick", "place")
+    objects: tuple[str, ...] | None = None
+    episodes_per_object: int = 50
+    checkpoint: str | None = None
+    num_envs: int = 1
+    seed: int = 0
+    video: int = 0  # rollout videos of the first N episodes
+    sim_backend: str = "physx_cpu"
+    label: str | None = None  # the leaderboard row name (e.g. with the training budget)
+    dataset_revision: str | None = None
+
+    def rollout_spec(self, record_cameras: bool) -> RolloutSpec:
+        setting = get_setting(self.setting)
+        uses_objects = any(s not in ("nav", "open", "close") for s in self.skills)
+        n_objects = len(self.objects or setting.objects) if uses_objects else 1
+        if not (isinstance(self.episodes_per_object, int) and self.episodes_per_object > 0):
+            raise ValueError(f"--episodes-per-object must be a positive integer, got {self.episodes_per_object}")
+        return RolloutSpec(
+            setting=self.setting, skills=tuple(self.skills), objects=tuple(self.objects) if self.objects else None,
+            episodes=self.episodes_per_object * n_objects * len(self.skills), num_envs=self.num_envs, seed=self.seed,
+            policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
+        )
+
+
+def evaluate(
+    config: EvalConfig,
+    out: str | Path,
+    on_episode: Callable[[EpisodeData, Progress], None] | None = None,
+    command: str | None = None,
+) -> dict:
+    """Run (or continue) the evaluation into `out/records.jsonl` and write `out/results.json`; returns the results."""
+    from ..policies import policy_needs_images
+
+    out = Path(out)
+    spec = config.rollout_spec(record_cameras=policy_needs_images(config.policy, config.checkpoint) or config.video > 0)
+    run_spec = {**spec.as_dict(), "episodes_per_object": config.episodes_per_object}
+    sink = RecordSink(out, run_spec)
+    videos = out / "videos"
+
+    def after(episode: EpisodeData, progress: Progress) -> None:
+        if episode.record.episode_index < config.video and "rgb/drone_front" in episode.frames:
+            write_episode_video(episode, videos / f"episode_{episode.record.episode_index:06d}.mp4")
+        if on_episode:
+            on_episode(episode, progress)
+
+    RolloutRunner(spec, sink, on_episode=after).run()
+    provenance = {
+        "policy": config.policy, "checkpoint": str(Path(config.checkpoint).resolve()) if config.checkpoint else None,
+        "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(config.skills),
+        "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
+        "sim_backend": config.sim_backend, "num_envs": config.num_envs, "records": str(sink.path.name),
+        "command": command,
+    }
+    results = summarize(read_records(sink.path), provenance, label=config.label)
+    if videos.is_dir():
+        results["videos"] = sorted(f"videos/{p.name}" for p in videos.glob("*.mp4"))
+    write_results(out / RESULTS_FILE, results)
+    return results
+
+
+def write_episode_video(episode: EpisodeData, path: Path, fps: int = 20) -> None:
+    """The three onboard RGB cameras side by side."""
+    from ..flight.runner import write_video
+
+    frames = np.concatenate([episode.frames[f"rgb/{cam}"] for cam in CAMERAS], axis=2)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_video(list(frames), path, fps=fps)
+
+
+def format_table(results: dict) -> str:
+    """Plain-text per skill x object table with SE, Wilson interval, n and the leading failure mode."""
+    lines = [f"{results['label']} on {results['setting']}: Mean S.R. {100 * results['mean_sr']:.1f}% "
+             f"({results['episodes']} episodes)"]
+    header = f"{'skill':<8} {'object':<17} {'success %':>13} {'wilson95 %':>13} {'n':>4}  leading failure mode"
+    lines.append(header)
+    for c in results["cells"]:
+        failures = {m: k for m, k in c["modes"].items() if not m.startswith("Successful")}
+        leading = max(failures, key=failures.get) if failures else "-"
+        lo, hi = c["wilson95"]
+        lines.append(f"{c['skill']:<8} {c['object'] or '-':<17} {100 * c['success_rate']:>6.1f} ± {100 * c['se']:<4.1f} "
+                     f"{100 * lo:>5.1f}-{100 * hi:<6.1f} {c['n']:>4}  {leading}"
+                     + (f" ({failures[leading]})" if failures else ""))
+    for name, stages in results.get("chains", {}).items():
+        parts = [f"{s['skill']} {s['successes']}/{s['reached']}" for s in stages]
+        lines.append(f"chain {name}: " + " -> ".join(parts))
+    return "\n".join(lines)

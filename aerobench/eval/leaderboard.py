@@ -1,0 +1,264 @@
+"""Leaderboards rendered from results files, never typed: Markdown and LaTeX per setting, one static HTML page.
+
+Layout follows the spec's PrepareGroceries table: rows policy x skill, columns objects, cells "success % +- SE",
+the best policy per skill-object column in bold, and a Mean S.R. column (unweighted mean over the policy's
+skill-object pairs). Every table names the results files and the commands that produced them.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..envs.tasks import SKILLS, get_setting
+from .results import load_results
+
+OBJECT_LABELS = {
+    "master_chef_can": "Master Chef Can", "cracker_box": "Cracker Box", "sugar_box": "Sugar Box",
+    "tomato_soup_can": "Tomato Soup Can", "tuna_fish_can": "Tuna Fish Can", "pudding_box": "Pudding Box",
+    "gelatin_box": "Gelatin Box", "potted_meat_can": "Potted Meat Can", "bowl": "Bowl", "package": "Package", "": "-",
+}
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f}"
+
+
+class SettingTable:
+    """One setting's grid: results (one per policy row block), the object columns and the best cells."""
+
+    def __init__(self, setting: str, results: Sequence[dict]):
+        self.setting = setting
+        self.results = sorted(results, key=lambda r: r["mean_sr"])  # the spec lists the strongest last
+        order = {o: i for i, o in enumerate(get_setting(setting).objects)}
+        objects = {c["object"] for r in results for c in r["cells"]}
+        self.objects = sorted(objects, key=lambda o: (order.get(o, len(order)), o))
+        skill_rank = {s: i for i, s in enumerate(SKILLS)}
+        self.skills = sorted({c["skill"] for r in results for c in r["cells"]}, key=lambda s: (skill_rank.get(s, 99), s))
+        self.best: dict[tuple[str, str], float] = {}
+        for skill in self.skills:
+            for obj in self.objects:
+                rates = [c["success_rate"] for r in results if (c := self.cell(r, skill, obj)) is not None]
+                if len(rates) > 1 and max(rates) > 0:
+                    self.best[(skill, obj)] = max(rates)
+
+    @staticmethod
+    def cell(result: dict, skill: str, obj: str) -> dict | None:
+        for c in result["cells"]:
+            if c["skill"] == skill and c["object"] == obj and c["n"]:
+                return c
+        return None
+
+    def skills_of(self, result: dict) -> list[str]:
+        present = {c["skill"] for c in result["cells"]}
+        return [s for s in self.skills if s in present]
+
+    def is_best(self, skill: str, obj: str, cell: dict) -> bool:
+        return (skill, obj) in self.best and abs(cell["success_rate"] - self.best[(skill, obj)]) < 1e-12
+
+    def best_mean(self) -> float:
+        return max(r["mean_sr"] for r in self.results)
+
+
+def load_all(paths: Sequence[str | Path]) -> dict[str, list[dict]]:
+    """Results grouped by setting; the same policy label twice in one setting is refused."""
+    by_setting: dict[str, list[dict]] = {}
+    for path in paths:
+        result = load_results(path)
+        result["_source"] = Path(path).name
+        result["_path"] = Path(path).resolve()
+        group = by_setting.setdefault(result["setting"], [])
+        if any(r["label"] == result["label"] for r in group):
+            raise ValueError(f"two results for {result['label']!r} on {result['setting']} ({path}); pass one, or give "
+                             f"one a different --label when evaluating")
+        group.append(result)
+    if not by_setting:
+        raise ValueError("no results files given")
+    return by_setting
+
+
+def render_markdown(table: SettingTable) -> str:
+    header = ["Policy", "Skill", *(OBJECT_LABELS.get(o, o) for o in table.objects), "Mean S.R."]
+    lines = [f"## {table.setting}", "",
+             "Success % ± binomial standard error per skill-object pair (n episodes each; see the results files). "
+             "Best per column in bold. Mean S.R.: unweighted mean over the policy's skill-object pairs.", "",
+             "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for result in table.results:
+        for i, skill in enumerate(table.skills_of(result)):
+            cells = []
+            for obj in table.objects:
+                c = table.cell(result, skill, obj)
+                text = "" if c is None else f"{_pct(c['success_rate'])} ± {_pct(c['se'])}"
+                cells.append(f"**{text}**" if c is not None and table.is_best(skill, obj, c) else text)
+            mean = ""
+            if i == 0:
+                mean = _pct(result["mean_sr"])
+                mean = f"**{mean}**" if len(table.results) > 1 and result["mean_sr"] == table.best_mean() else mean
+            lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
+    lines += ["", "| Row | n per cell | Results file | Command |", "|---|---|---|---|"]
+    for result in table.results:
+        ns = sorted({c["n"] for c in result["cells"]})
+        command = result["provenance"].get("command") or "-"
+        lines.append(f"| {result['label']} | {', '.join(map(str, ns))} | `{result['_source']}` | `{command}` |")
+    return "\n".join(lines) + "\n"
+
+
+def render_latex(table: SettingTable) -> str:
+    """The spec's table layout (needs booktabs-free `makecell`, `multirow`, `diagbox`, `xcolor`)."""
+    n_obj = len(table.objects)
+    heads = []
+    for o in table.objects:
+        words = OBJECT_LABELS.get(o, o).split(" ")
+        heads.append(r"\makecell{" + " ".join(words[:-1]) + r"\\" + words[-1] + "}" if len(words) > 1 else words[0])
+    lines = [
+        r"\begin{table*}[t]", r"\centering", r"\small",
+        rf"\caption{{\textbf{{Simulation results on aerobench {table.setting}.}} Success rate (\%) $\pm$ binomial "
+        r"standard error per skill--object pair. Mean S.R. is the unweighted average over the skill--object pairs.}",
+        r"\resizebox{\textwidth}{!}{%", r"\begin{tabular}{" + "c" * (n_obj + 3) + "}", r"\hline",
+        r"\diagbox[width=1.5cm,height=0.95cm]{Alg.}{Obj.} & \emph{Skill} & " + " & ".join(heads)
+        + r" & \makecell{Mean S.R.\\(" + " + ".join(s.capitalize() for s in table.skills) + r")} \\", r"\hline",
+    ]
+    for result in table.results:
+        skills = table.skills_of(result)
+        for i, skill in enumerate(skills):
+            cells = []
+            for obj in table.objects:
+                c = table.cell(result, skill, obj)
+                if c is None:
+                    cells.append("--")
+                    continue
+                text = f"{_pct(c['success_rate'])} \\pm {_pct(c['se'])}"
+                cells.append(rf"{{\boldmath${text}$}}" if table.is_best(skill, obj, c) else f"${text}$")
+            last = i == len(skills) - 1
+            name = rf"\multirow{{-{len(skills)}}}{{*}}{{{_latex_escape(result['label'])}}}" if last else ""
+            mean = ""
+            if last:
+                value = _pct(result["mean_sr"])
+                best = len(table.results) > 1 and result["mean_sr"] == table.best_mean()
+                mean = rf"\multirow{{-{len(skills)}}}{{*}}{{" + (rf"\textbf{{{value}}}" if best else value) + "}"
+            lines.append(f"{name} & {skill.capitalize()} & " + " & ".join(cells) + f" & {mean} \\\\")
+        lines.append(r"\hline")
+    lines += [r"\end{tabular}%", "}", r"\end{table*}"]
+    return "\n".join(lines) + "\n"
+
+
+def _latex_escape(text: str) -> str:
+    for a, b in (("\\", r"\textbackslash{}"), ("_", r"\_"), ("%", r"\%"), ("&", r"\&"), ("#", r"\#")):
+        text = text.replace(a, b)
+    return text
+
+
+_PAGE = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>aerobench leaderboard</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
+table {{ border-collapse: collapse; margin: 1em 0; font-size: 14px; }}
+th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: center; }}
+th {{ background: #f3f3f3; cursor: pointer; user-select: none; }}
+td.best {{ font-weight: bold; }}
+.bar {{ display: flex; width: 360px; height: 14px; border: 1px solid #aaa; }}
+.bar span {{ display: block; height: 100%; }}
+.legend span {{ display: inline-block; width: 12px; height: 12px; margin: 0 4px 0 12px; vertical-align: middle; }}
+</style></head><body>
+<h1>aerobench leaderboard</h1>
+<p>Generated by <code>aerobench leaderboard</code> from results files; success % &plusmn; binomial SE per skill-object pair,
+best per column in bold. Click a column header to sort.</p>
+{body}
+<script>
+document.querySelectorAll("table.sortable").forEach(function (table) {{
+  table.querySelectorAll("th").forEach(function (th, col) {{
+    th.addEventListener("click", function () {{
+      var rows = Array.from(table.tBodies[0].rows);
+      var asc = th.dataset.asc !== "1"; th.dataset.asc = asc ? "1" : "0";
+      rows.sort(function (a, b) {{
+        var x = a.cells[col].dataset.v || a.cells[col].textContent, y = b.cells[col].dataset.v || b.cells[col].textContent;
+        var nx = parseFloat(x), ny = parseFloat(y);
+        var c = (!isNaN(nx) && !isNaN(ny)) ? nx - ny : x.localeCompare(y);
+        return asc ? c : -c;
+      }});
+      rows.forEach(function (r) {{ table.tBodies[0].appendChild(r); }});
+    }});
+  }});
+}});
+</script></body></html>
+"""
+
+_COLOURS = ("#4caf50", "#e53935", "#fb8c00", "#8e24aa", "#1e88e5", "#6d4c41", "#00897b", "#c0ca33", "#546e7a", "#d81b60")
+
+
+def render_html(tables: Sequence[SettingTable], video_root: Path | None = None) -> str:
+    body = []
+    for table in tables:
+        e = html.escape
+        body.append(f"<h2>{e(table.setting)}</h2>")
+        head = ["Policy", "Skill", *(OBJECT_LABELS.get(o, o) for o in table.objects), "Mean S.R."]
+        body.append(f'<table class="sortable" data-setting="{e(table.setting)}"><thead><tr>'
+                    + "".join(f"<th>{e(h)}</th>" for h in head) + "</tr></thead><tbody>")
+        for result in table.results:
+            for skill in table.skills_of(result):
+                row = [f"<td>{e(result['label'])}</td>", f"<td>{e(skill)}</td>"]
+                for obj in table.objects:
+                    c = table.cell(result, skill, obj)
+                    if c is None:
+                        row.append('<td data-v="-1"></td>')
+                        continue
+                    cls = ' class="best"' if table.is_best(skill, obj, c) else ""
+                    title = f"n={c['n']}, Wilson 95% {_pct(c['wilson95'][0])}-{_pct(c['wilson95'][1])}"
+                    row.append(f'<td{cls} data-v="{c["success_rate"]:.6f}" title="{title}">'
+                               f"{_pct(c['success_rate'])} &plusmn; {_pct(c['se'])}</td>")
+                row.append(f'<td class="mean" data-v="{result["mean_sr"]:.6f}">{_pct(result["mean_sr"])}</td>')
+                body.append("<tr>" + "".join(row) + "</tr>")
+        body.append("</tbody></table>")
+        body.append("<h3>Outcome modes</h3>")
+        for result in table.results:
+            modes: dict[str, int] = {}
+            for c in result["cells"]:
+                for m, k in c["modes"].items():
+                    modes[m] = modes.get(m, 0) + k
+            total = sum(modes.values()) or 1
+            names = sorted(modes, key=lambda m: (not m.startswith("Successful"), -modes[m]))
+            spans = "".join(f'<span style="width:{100 * modes[m] / total:.2f}%;background:{_COLOURS[i % len(_COLOURS)]}" '
+                            f'title="{e(m)}: {modes[m]}"></span>' for i, m in enumerate(names))
+            legend = "".join(f'<span style="background:{_COLOURS[i % len(_COLOURS)]}"></span>{e(m)} ({modes[m]})'
+                             for i, m in enumerate(names))
+            videos = "".join(f' <a href="{e(v)}">video {j + 1}</a>' for j, v in enumerate(result.get("_videos", [])))
+            body.append(f'<p><b>{e(result["label"])}</b>{videos}</p><div class="bar">{spans}</div>'
+                        f'<p class="legend">{legend}</p>')
+    return _PAGE.format(body="\n".join(body))
+
+
+def build_leaderboard(paths: Sequence[str | Path], out: str | Path) -> dict[str, Path]:
+    """Write `<setting>.md`, `<setting>.tex`, `index.html` and `README.md` into `out`; returns what was written."""
+    out = Path(out)
+    by_setting = load_all(paths)
+    out.mkdir(parents=True, exist_ok=True)
+    written: dict[str, Path] = {}
+    tables = []
+    for setting in sorted(by_setting):
+        for result in by_setting[setting]:
+            result["_videos"] = [_relative(result["_path"].parent / v, out.resolve()) for v in result.get("videos", [])]
+        table = SettingTable(setting, by_setting[setting])
+        tables.append(table)
+        (out / f"{setting}.md").write_text(render_markdown(table))
+        (out / f"{setting}.tex").write_text(render_latex(table))
+        written[f"{setting}.md"] = out / f"{setting}.md"
+        written[f"{setting}.tex"] = out / f"{setting}.tex"
+    (out / "index.html").write_text(render_html(tables))
+    written["index.html"] = out / "index.html"
+    readme = ["# Leaderboards", "", "Generated by `aerobench leaderboard` from the results files listed in each table; "
+              "do not edit by hand.", ""]
+    readme += [f"- [{t.setting}]({t.setting}.md) ({len(t.results)} policies; LaTeX: [{t.setting}.tex]({t.setting}.tex))"
+               for t in tables]
+    readme += ["", "Open `index.html` in a browser for sortable tables and failure-mode bars.", ""]
+    (out / "README.md").write_text("\n".join(readme))
+    written["README.md"] = out / "README.md"
+    (out / "sources.json").write_text(json.dumps({t.setting: [r["_source"] for r in t.results] for t in tables}, indent=2) + "\n")
+    return written
+
+
+def _relative(target: Path, start: Path) -> str:
+    import os
+
+    return os.path.relpath(target, start)

@@ -1,0 +1,131 @@
+"""Results: per-episode records -> a versioned results JSON (per skill x object success, SE, Wilson, modes).
+
+The spec's table cell is "success % +- binomial SE" over one skill-object pair's evaluation episodes; "Mean S.R." is
+the unweighted mean over the skill-object pairs. Initialization failures (starts the planner or env rejected) are
+counted apart and never enter n. Chain runs also get per-stage conditional success from their segments, so error
+propagation across skills is visible.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+from collections import Counter
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from .. import __version__
+from ..envs.tasks import SKILLS
+from .stats import standard_error, wilson_interval
+
+RESULTS_FORMAT = "aerobench-results"
+RESULTS_VERSION = 1
+
+
+def _cell(rows: list[Mapping]) -> dict:
+    executed = [r for r in rows if r["outcome"] != "I"]
+    n, k = len(executed), sum(r["outcome"] == "S" for r in executed)
+    lo, hi = wilson_interval(k, n)
+    return {
+        "n": n,
+        "successes": k,
+        "success_rate": k / n if n else 0.0,
+        "se": standard_error(k, n),
+        "wilson95": [lo, hi],
+        "init_failures": len(rows) - n,
+        "outcomes": dict(Counter(r["outcome"] for r in executed)),
+        "modes": dict(Counter(r["mode"] for r in executed)),
+        "causes": dict(Counter(r["cause"] for r in executed if r["cause"])),
+    }
+
+
+def _chain_stages(rows: list[Mapping]) -> list[dict]:
+    """Per stage: episodes that reached it, of which succeeded, and the conditional rate."""
+    stages: dict[int, dict] = {}
+    for row in rows:
+        if row["outcome"] == "I":
+            continue
+        for seg in row.get("segments") or ():
+            s = stages.setdefault(seg["stage"], {"stage": seg["stage"], "skill": seg["skill"], "reached": 0, "successes": 0,
+                                                 "modes": Counter()})
+            s["reached"] += 1
+            s["successes"] += seg["outcome"] == "S"
+            s["modes"][seg["mode"]] += 1
+    out = []
+    for stage in sorted(stages):
+        s = stages[stage]
+        n, k = s["reached"], s["successes"]
+        out.append({**s, "modes": dict(s["modes"]), "conditional_success": k / n if n else 0.0,
+                    "se": standard_error(k, n)})
+    return out
+
+
+def summarize(records: Iterable[Mapping], provenance: Mapping | None = None, label: str | None = None) -> dict:
+    """A results document from episode-record rows (dicts as in records.jsonl) of one policy on one setting."""
+    rows = list(records)
+    if not rows:
+        raise ValueError("no episode records to summarize")
+    settings = {r["setting"] for r in rows}
+    policies = {r["policy"] for r in rows}
+    if len(settings) != 1 or len(policies) != 1:
+        raise ValueError(f"one results file holds one policy on one setting; got settings {sorted(settings)}, "
+                         f"policies {sorted(policies)}")
+    groups: dict[tuple[str, str], list] = {}
+    for row in sorted(rows, key=lambda r: r["episode_index"]):
+        groups.setdefault((row["skill"], row["object"]), []).append(row)
+    skill_rank = {s: i for i, s in enumerate(SKILLS)}
+    cells = [
+        {"skill": skill, "object": obj, **_cell(group)}
+        for (skill, obj), group in sorted(groups.items(), key=lambda kv: (skill_rank.get(kv[0][0], 99), kv[0][0]))
+    ]
+    scored = [c for c in cells if c["n"]]
+    per_skill = {}
+    for cell in scored:
+        per_skill.setdefault(cell["skill"], []).append(cell["success_rate"])
+    chains = {}
+    for (skill, _), group in groups.items():
+        if any(r.get("segments") for r in group):
+            chains.setdefault(skill, []).extend(group)
+    policy = policies.pop()
+    return {
+        "format": RESULTS_FORMAT,
+        "version": RESULTS_VERSION,
+        "aerobench_version": __version__,
+        "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "setting": settings.pop(),
+        "policy": policy,
+        "label": label or policy,
+        "provenance": dict(provenance or {}),
+        "episodes": len(rows),
+        "cells": cells,
+        "skill_mean_sr": {s: sum(v) / len(v) for s, v in per_skill.items()},
+        "mean_sr": sum(c["success_rate"] for c in scored) / len(scored) if scored else 0.0,
+        "chains": {name: _chain_stages(group) for name, group in chains.items()},
+    }
+
+
+def write_results(path: str | Path, results: Mapping) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    tmp.replace(path)
+    return path
+
+
+def load_results(path: str | Path) -> dict:
+    """Read a results file, refusing other formats and other results versions with a one-line reason."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"no results file at {path} (aerobench eval writes DIR/results.json)")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path} is not JSON ({e.msg} at line {e.lineno})") from None
+    if not isinstance(data, dict) or data.get("format") != RESULTS_FORMAT:
+        raise ValueError(f"{path} is not an aerobench results file (no \"format\": \"{RESULTS_FORMAT}\")")
+    if data.get("version") != RESULTS_VERSION:
+        raise ValueError(f"{path} is results version {data.get('version')!r} (written by aerobench "
+                         f"{data.get('aerobench_version', '?')}); this aerobench reads version {RESULTS_VERSION}: "
+                         f"re-run aerobench eval or use the matching aerobench version")
+    return data

@@ -1,0 +1,69 @@
+"""The privileged hybrid expert: batched per-skill controllers over the env's privileged state.
+
+`ExpertController(env)` builds one expert per evaluator of a skill env (or per stage of a sequential env) and acts
+for all envs at once. Skills: `pick`, `place`, `nav` (with the route `planner`), `articulation` (open/close on the
+arm platform). The expert demonstrates; it is not an evaluated policy (spec Sec. 3.3.1).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from .nav import NavExpert
+from .pick import PickExpert
+from .place import PlaceExpert
+
+
+def _expert_for(env, evaluator, carrying: bool):
+    skill = evaluator.skill
+    if skill == "pick":
+        return PickExpert(env, evaluator)
+    if skill == "place":
+        return PlaceExpert(env, evaluator)
+    if skill == "nav":
+        # a held object hangs its grasp height below the tool centre point
+        depth = float(env.target_grasp_point[:, 2].max()) if carrying and env.target is not None else 0.0
+        return NavExpert(env, evaluator, carrying_depth=depth)
+    from .articulation import ArticulationExpert
+
+    return ArticulationExpert(env, evaluator)
+
+
+class ExpertController:
+    """Acts for every env of a skill or sequential env; chains switch expert when the env's stage advances."""
+
+    def __init__(self, env):
+        self.env = env
+        carrying, self.experts = False, []
+        for evaluator in env.evaluators:
+            self.experts.append(_expert_for(env, evaluator, carrying))
+            carrying = evaluator.skill == "pick" or (carrying and evaluator.skill != "place")
+        self.stage = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
+
+    def reset(self, env_idx: torch.Tensor) -> None:
+        self.stage[env_idx] = 0
+        self.experts[0].reset(env_idx)
+
+    def act(self) -> torch.Tensor:
+        active = self.env.active_evaluator_index()
+        changed = active != self.stage
+        if changed.any():
+            for k, expert in enumerate(self.experts):
+                rows = (changed & (active == k)).nonzero()[:, 0]
+                if len(rows):
+                    expert.reset(rows)
+            self.stage = active.clone()
+        if len(self.experts) == 1:
+            return self.experts[0].act()
+        actions = torch.stack([expert.act() for expert in self.experts], dim=0)
+        return actions[active, torch.arange(self.env.num_envs, device=self.env.device)]
+
+    def infeasible(self) -> torch.Tensor:
+        """Envs whose first stage has no planned route: starts the expert rejects (recorded as initialization
+        failures, apart from executed episodes). Call right after `reset`."""
+        planned = getattr(self.experts[0], "planned", None)
+        return torch.zeros_like(self.stage, dtype=torch.bool) if planned is None else ~planned
+
+    def phase(self) -> torch.Tensor:
+        phases = torch.stack([expert.phase for expert in self.experts], dim=0)
+        return phases[self.stage, torch.arange(self.env.num_envs, device=self.env.device)]

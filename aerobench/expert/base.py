@@ -1,0 +1,111 @@
+"""What every skill expert shares: per-env phase bookkeeping and assembling the normalized action.
+
+An expert reads privileged simulator state from the env (object poses, goals, the layout) and returns the same
+normalized action a learned policy would, so its demonstrations are ordinary trajectories. Every step is batched
+over envs: phases are `(N,)` tensors and transitions are `torch.where`, never a Python loop over envs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from ..envs.control.virtual_joints import AirframeState
+from ..envs.platforms import MAX_YAW_RATE_RPS
+from .motion import POSITION_GAIN, YAW_GAIN, flight_action, velocity_towards, wrap_angle, yaw_rate_towards
+
+ARM_YAW_GAIN = 0.6  # 1/s
+ARM_MAX_YAW_RATE = 0.4  # rad/s
+
+
+class SkillExpert:
+    """Base of the per-skill experts. `evaluator` is the env's evaluator of the skill being demonstrated."""
+
+    def __init__(self, env, evaluator):
+        self.env = env
+        self.evaluator = evaluator
+        self.n = env.num_envs
+        self.device = env.device
+        self.phase = torch.zeros(self.n, dtype=torch.long, device=self.device)
+        self.timer = torch.zeros(self.n, dtype=torch.long, device=self.device)
+        self.platform = env.platform
+        self.has_arm = env.platform.arm is not None
+        rest = env.platform.arm.working_pose_rad if self.has_arm else ()
+        self.arm_rest = torch.tensor(rest, dtype=torch.float32, device=self.device)
+        # The arm platform's yaw torque is limited to 0.12 N m, so its heading lags the commanded yaw rate: a gentler
+        # heading loop keeps it from ringing (the gripper platform turns fast enough for the default).
+        self.yaw_gain, self.max_yaw_rate = (ARM_YAW_GAIN, ARM_MAX_YAW_RATE) if self.has_arm else (YAW_GAIN, MAX_YAW_RATE_RPS)
+
+    def reset(self, env_idx: torch.Tensor) -> None:
+        self.phase[env_idx] = 0
+        self.timer[env_idx] = 0
+
+    def act(self) -> torch.Tensor:
+        raise NotImplementedError
+
+    # ----------------------------------------------------------------------------------------------------------------
+    def state(self) -> AirframeState:
+        return self.env.agent.airframe_state()
+
+    def tcp(self) -> torch.Tensor:
+        return self.env.agent.tcp_pose.p
+
+    def goto(self, phase: torch.Tensor, condition: torch.Tensor, new_phase: int) -> torch.Tensor:
+        """Move envs in `phase` where `condition` holds to `new_phase` (timer restarts)."""
+        move = condition & (phase == self.phase)
+        self.phase = torch.where(move, torch.full_like(self.phase, new_phase), self.phase)
+        self.timer = torch.where(move, torch.zeros_like(self.timer), self.timer)
+        return move
+
+    def in_phase(self, value: int) -> torch.Tensor:
+        return self.phase == value
+
+    def advance_timer(self) -> None:
+        self.timer = self.timer + 1
+
+    def action(
+        self,
+        tcp_target: torch.Tensor,
+        max_speed: torch.Tensor,
+        yaw_target: torch.Tensor,
+        gripper: torch.Tensor,
+        arm_target: torch.Tensor | None = None,
+        gain: torch.Tensor | float = POSITION_GAIN,
+        tracked: torch.Tensor | None = None,
+        yaw_rate_feedforward: torch.Tensor | None = None,
+        yaw_gain: torch.Tensor | None = None,
+        velocity_override: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> torch.Tensor:
+        """Track `tcp_target` `(N, 3)` under `max_speed` `(N,)` with position `gain` (1/s, scalar or `(N,)`), turn to
+        `yaw_target`, set the gripper (-1 closed) and the arm joint targets (default: the rest pose).
+        `tracked` `(N, 3)` replaces the tool centre point as the point driven to the target (e.g. the airframe)."""
+        state = self.state()
+        gain = torch.as_tensor(gain, dtype=torch.float32, device=self.device)
+        point = self.tcp() if tracked is None else tracked
+        velocity = velocity_towards((tcp_target - point) * (gain[:, None] if gain.dim() else gain), max_speed, gain=1.0)
+        if velocity_override is not None:  # (mask (N,), velocity (N, 3)): commanded directly where masked
+            mask, direct = velocity_override
+            velocity = torch.where(mask[:, None], direct, velocity)
+        if yaw_gain is None:
+            yaw_rate = yaw_rate_towards(state.yaw, yaw_target, self.max_yaw_rate, self.yaw_gain)
+        else:  # per-env gains (e.g. stiffer while a door holds the heading)
+            yaw_rate = torch.clamp(yaw_gain * wrap_angle(yaw_target - state.yaw), -MAX_YAW_RATE_RPS, MAX_YAW_RATE_RPS)
+        if yaw_rate_feedforward is not None:  # e.g. following a door that turns under the gripper
+            yaw_rate = torch.clamp(yaw_rate + yaw_rate_feedforward, -MAX_YAW_RATE_RPS, MAX_YAW_RATE_RPS)
+        parts = [flight_action(velocity, yaw_rate)]
+        if self.has_arm:
+            target = self.arm_rest.expand(self.n, 3) if arm_target is None else arm_target
+            parts.append(self.env.agent.body_controller.arm_action(target))
+        parts.append(gripper[:, None])
+        return torch.cat(parts, dim=-1)
+
+
+def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, symmetric: torch.Tensor) -> torch.Tensor:
+    """Heading that puts the closing axis (body y) along the object's x axis, the nearer of the two; objects that are
+    round about z (`symmetric`) keep the current heading rounded to the room axes (supports are fitted for it)."""
+    from .motion import nearest_equivalent_yaw
+
+    across = nearest_equivalent_yaw(current_yaw, object_yaw + math.pi / 2, math.pi)
+    axis_aligned = nearest_equivalent_yaw(current_yaw, torch.zeros_like(current_yaw), math.pi / 2)
+    return torch.where(symmetric, axis_aligned, across)

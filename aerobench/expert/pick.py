@@ -1,0 +1,151 @@
+"""Pick expert: approach, align, descend (or reach in), close, wait for the grasp, lift, hold.
+
+Gripper platform: the grasp is taken from above (the L-shaped approach of the spec's Fig. trajectory diversity:
+fly over the object, then descend onto it). Arm platform: the fingers point forward, so the grasp is taken from the
+side at the object's grasp height, reaching in along the heading. Guards: a grasp that does not close within its
+time, or is lost while lifting, reopens and retries from the pre-grasp point (at most `MAX_RETRIES` times).
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+import torch
+
+from ..envs.control.so3 import quat_wxyz_to_matrix
+from ..envs.platforms import MAX_SPEED_MPS
+from .base import SkillExpert, grasp_heading
+from .motion import QUARTER_TURN, nearest_equivalent_yaw, wrap_angle
+
+APPROACH_SPEED_MPS = 0.5
+ALIGN_TOLERANCE_M = 0.012  # at most; wide objects leave the open fingers only a few mm (master chef can: 4 mm)
+YAW_TOLERANCE_RAD = math.radians(4.0)
+SETTLED_MPS = 0.04
+DESCEND_SPEED_MPS = 0.15
+FINAL_SPEED_MPS = 0.05  # the last few centimetres (spec: the expert touches objects at ~0.01 m/s)
+FINAL_ZONE_M = 0.05
+AT_GRASP_M = 0.008
+LIFT_SPEED_MPS = 0.15  # spec appendix: the expert's lift commands 0.15 m/s
+LIFT_HEIGHT_M = 0.20
+GRASP_CONFIRM_STEPS = 4
+CLOSE_TIMEOUT_STEPS = 40
+ABOVE_OBJECT_M = 0.10  # pre-grasp: the finger tips this far above the object's top (gripper platform)
+SIDE_STANDOFF_M = 0.15  # pre-grasp: the tool centre point this far back from the grasp point (arm platform)
+MAX_RETRIES = 2
+FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
+SYMMETRIC_SHAPES = ("cylinder",)
+
+
+class PickPhase(IntEnum):
+    APPROACH = 0
+    ALIGN = 1
+    DESCEND = 2
+    CLOSE = 3
+    LIFT = 4
+    HOLD = 5
+    REOPEN = 6
+
+
+class PickExpert(SkillExpert):
+    def __init__(self, env, evaluator):
+        super().__init__(env, evaluator)
+        specs = env.target_specs
+        self.symmetric = torch.tensor([s.shape in SYMMETRIC_SHAPES for s in specs], device=self.device)
+        self.is_bowl = torch.tensor([s.shape == "bowl" for s in specs], device=self.device)
+        self.bowl_rim = torch.tensor(
+            [[s.size_m[0] / 2 - s.size_m[2] / 2, s.size_m[1] - 0.015] if s.shape == "bowl" else [0.0, 0.0] for s in specs],
+            device=self.device,
+        )
+        side_room = (env.platform.gripper.max_opening_m - env.target_grasp_width) / 2
+        self.align_tolerance = (side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
+        self.heading = torch.zeros(self.n, device=self.device)
+        self.lift_from = torch.zeros(self.n, 3, device=self.device)
+        self.retries = torch.zeros(self.n, dtype=torch.long, device=self.device)
+
+    def reset(self, env_idx):
+        super().reset(env_idx)
+        self.retries[env_idx] = 0
+        state = self.state()
+        yaw = torch.atan2(self.env.target.pose.q[:, 3], self.env.target.pose.q[:, 0]) * 2
+        self.heading[env_idx] = grasp_heading(yaw, state.yaw, self.symmetric | self.is_bowl)[env_idx]
+
+    def grasp_point(self) -> torch.Tensor:
+        """Where the tool centre point goes: the planned grasp point; for bowls the rim point under the heading."""
+        env = self.env
+        pose = env.target.pose
+        R = quat_wxyz_to_matrix(pose.q)
+        planned = pose.p + (R @ env.target_grasp_point[..., None])[..., 0]
+        # bowl: the rim point whose radial direction is the closing axis (body y) of the chosen heading
+        radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), torch.zeros_like(self.heading)], -1)
+        tcp_dir = radial * torch.sign((radial * (self.tcp() - pose.p)).sum(-1, keepdim=True) + 1e-9)
+        rim = pose.p + self.bowl_rim[:, :1] * tcp_dir + torch.stack(
+            [torch.zeros_like(self.heading), torch.zeros_like(self.heading), self.bowl_rim[:, 1]], -1
+        )
+        return torch.where(self.is_bowl[:, None], rim, planned)
+
+    def pre_grasp(self, grasp: torch.Tensor) -> torch.Tensor:
+        env = self.env
+        if self.has_arm:
+            forward = torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
+            return grasp - SIDE_STANDOFF_M * forward
+        top = env.target.pose.p[:, 2] + env.target_height
+        lift = (top - grasp[:, 2]).clamp_min(0.0) + ABOVE_OBJECT_M + 0.02  # finger tips sit 2 cm below the TCP
+        return grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+
+    def act(self) -> torch.Tensor:
+        P = PickPhase
+        info = self.env.evaluate()
+        state = self.state()
+        tcp = self.tcp()
+        grasp = self.grasp_point()
+        pre = self.pre_grasp(grasp)
+        speed = torch.linalg.norm(state.velocity, dim=-1)
+        yaw_ok = wrap_angle(self.heading - state.yaw).abs() < YAW_TOLERANCE_RAD
+        grasped = info["is_grasped"]
+
+        # transitions
+        at_pre = torch.linalg.norm(tcp - pre, dim=-1) < 0.04
+        self.goto(P.APPROACH, at_pre, P.ALIGN)
+        aligned = (torch.linalg.norm((tcp - pre)[:, :2], dim=-1) < self.align_tolerance) & yaw_ok & (speed < SETTLED_MPS)
+        self.goto(P.ALIGN, aligned, P.DESCEND)
+        at_grasp = torch.linalg.norm(tcp - grasp, dim=-1) < AT_GRASP_M
+        self.goto(P.DESCEND, at_grasp & (speed < SETTLED_MPS), P.CLOSE)
+        confirmed = grasped & (self.timer >= GRASP_CONFIRM_STEPS)
+        started_lift = self.goto(P.CLOSE, confirmed, P.LIFT)
+        self.lift_from = torch.where(started_lift[:, None], tcp, self.lift_from)
+        failed_close = self.in_phase(P.CLOSE) & (self.timer >= CLOSE_TIMEOUT_STEPS)
+        lost = (self.in_phase(P.LIFT) | self.in_phase(P.HOLD)) & ~grasped & (self.timer > GRASP_CONFIRM_STEPS)
+        retry = (failed_close | lost) & (self.retries < MAX_RETRIES)
+        self.retries = self.retries + retry.long()
+        self.phase = torch.where(retry, torch.full_like(self.phase, P.REOPEN), self.phase)
+        self.timer = torch.where(retry, torch.zeros_like(self.timer), self.timer)
+        lifted = info["lift_height"] >= 0.12
+        self.goto(P.LIFT, lifted, P.HOLD)
+        self.goto(P.REOPEN, self.timer >= 10, P.APPROACH)
+        self.advance_timer()
+
+        # commands per phase
+        phase = self.phase
+        target = torch.where((phase == P.APPROACH)[:, None] | (phase == P.ALIGN)[:, None] | (phase == P.REOPEN)[:, None], pre, grasp)
+        lift_target = self.lift_from + torch.tensor([0.0, 0.0, LIFT_HEIGHT_M], device=self.device)
+        target = torch.where((phase == P.LIFT)[:, None] | (phase == P.HOLD)[:, None], lift_target, target)
+        # descend only while centred over the grasp: a drift pauses the descent until it is corrected
+        drift = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > self.align_tolerance
+        hold_height = (phase == P.DESCEND) & drift & (not self.has_arm)
+        target = torch.where(hold_height[:, None], torch.cat([grasp[:, :2], tcp[:, 2:]], -1), target)
+        near = torch.linalg.norm(tcp - grasp, dim=-1) < FINAL_ZONE_M
+        max_speed = torch.full((self.n,), APPROACH_SPEED_MPS, device=self.device)
+        max_speed = torch.where(phase == P.ALIGN, torch.full_like(max_speed, 0.2), max_speed)
+        max_speed = torch.where(phase == P.DESCEND, torch.where(near, FINAL_SPEED_MPS, DESCEND_SPEED_MPS), max_speed)
+        max_speed = torch.where((phase == P.CLOSE) | (phase == P.HOLD), torch.full_like(max_speed, 0.1), max_speed)
+        max_speed = torch.where(phase == P.LIFT, torch.full_like(max_speed, LIFT_SPEED_MPS), max_speed)
+        max_speed = torch.where(phase == P.REOPEN, torch.full_like(max_speed, 0.1), max_speed)
+        closed = (phase == P.CLOSE) | (phase == P.LIFT) | (phase == P.HOLD)
+        gripper = torch.where(closed, torch.full((self.n,), -1.0, device=self.device), torch.ones(self.n, device=self.device))
+        fine = (phase == P.ALIGN) | (phase == P.DESCEND) | (phase == P.CLOSE)
+        gain = torch.where(fine, FINE_GAIN, 1.2)
+        return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), self.heading, gripper, gain=gain)
+
+
+__all__ = ["PickExpert", "PickPhase", "QUARTER_TURN", "nearest_equivalent_yaw"]

@@ -1,0 +1,118 @@
+"""Place expert: transport, align over the goal, descend to support contact, stop before release, open, retreat.
+
+The object hangs in the jaws, so alignment and descent steer the object (not the tool centre point) onto the goal.
+Release happens only once the support carries the object and the drone has stopped (spec appendix: the expert's
+release speeds are a few mm/s); the retreat is straight up past the 0.27 m clearance, then the drone hovers still.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+import torch
+
+from .base import SkillExpert
+from .motion import wrap_angle
+from .planner import planner_for
+from .route import RouteFollower
+
+TRANSPORT_SPEED_MPS = 0.45
+TRANSPORT_CLEARANCE_M = 0.15  # the object's bottom this far above the goal surface while transporting
+ALIGN_TOLERANCE_M = 0.01
+SETTLED_MPS = 0.03
+DESCEND_SPEED_MPS = 0.10
+TOUCH_SPEED_MPS = 0.04
+TOUCH_ZONE_M = 0.04
+PRESS_SPEED_MPS = 0.04  # on the surface: keep sinking gently until the support carries the object
+SET_DOWN_STEPS = 3
+STOPPED_MPS = 0.008  # "stop before release"
+STOPPED_STEPS = 6
+OPEN_STEPS = 12
+RETREAT_HEIGHT_M = 0.40  # above the release point: beyond the 0.27 m clearance with margin
+RETREAT_SPEED_MPS = 0.2
+
+
+class PlacePhase(IntEnum):
+    TRANSPORT = 0
+    ALIGN = 1
+    DESCEND = 2
+    STOP = 3
+    OPEN = 4
+    RETREAT = 5
+    HOVER = 6
+
+
+class PlaceExpert(SkillExpert):
+    def __init__(self, env, evaluator):
+        super().__init__(env, evaluator)
+        self.heading = torch.zeros(self.n, device=self.device)
+        self.release_point = torch.zeros(self.n, 3, device=self.device)
+        self.route = RouteFollower(self.n, self.device)
+        self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
+
+    def above_goal_tcp(self) -> torch.Tensor:
+        """Tool-centre-point target of the transport: the held object's bottom over the goal, with clearance."""
+        hang = self.tcp() - self.env.target.pose.p
+        return self.evaluator.goal + torch.tensor([0.0, 0.0, TRANSPORT_CLEARANCE_M], device=self.device) + hang
+
+    def reset(self, env_idx):
+        super().reset(env_idx)
+        state = self.state()
+        self.heading[env_idx] = state.yaw[env_idx]
+        airframe_goal = self.above_goal_tcp() + (state.position - self.tcp())
+        depth = float(self.env.target_grasp_point[:, 2].max())
+        for i in env_idx.tolist():
+            route = planner_for(self.env, i, depth).plan(state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy())
+            self.planned[i] = route is not None
+            self.route.set(i, route if route is not None else [airframe_goal[i].cpu().numpy()])
+
+    def act(self) -> torch.Tensor:
+        P = PlacePhase
+        env, info = self.env, self.env.evaluate()
+        state, tcp = self.state(), self.tcp()
+        speed = torch.linalg.norm(state.velocity, dim=-1)
+        goal = self.evaluator.goal
+        obj = env.target.pose.p  # bottom centre
+        hang = tcp - obj  # the object's bottom relative to the tool centre point
+        above = goal + torch.tensor([0.0, 0.0, TRANSPORT_CLEARANCE_M], device=self.device)
+        xy_error = torch.linalg.norm((obj - goal)[:, :2], dim=-1)
+
+        self.goto(P.TRANSPORT, torch.linalg.norm(obj - above, dim=-1) < 0.04, P.ALIGN)
+        self.goto(P.ALIGN, (xy_error < ALIGN_TOLERANCE_M) & (speed < SETTLED_MPS), P.DESCEND)
+        set_down = info["is_set_down"] & (self.timer >= SET_DOWN_STEPS)
+        self.goto(P.DESCEND, set_down, P.STOP)
+        self.goto(P.STOP, (speed < STOPPED_MPS) & (self.timer >= STOPPED_STEPS), P.OPEN)
+        started = self.goto(P.OPEN, self.timer >= OPEN_STEPS, P.RETREAT)
+        self.release_point = torch.where(started[:, None], tcp, self.release_point)
+        risen = tcp[:, 2] >= self.release_point[:, 2] + RETREAT_HEIGHT_M - 0.02
+        self.goto(P.RETREAT, risen, P.HOVER)
+        self.advance_timer()
+
+        phase = self.phase
+        target = above + hang
+        waypoint, last = self.route.target(state.position)
+        en_route = (phase == P.TRANSPORT) & ~last
+        target = torch.where(en_route[:, None], waypoint + (tcp - state.position), target)
+        contact = goal + hang - torch.tensor([0.0, 0.0, 0.01], device=self.device)  # aim 1 cm into the surface
+        target = torch.where((phase == P.DESCEND)[:, None], contact, target)
+        on_surface = (phase == P.DESCEND) & ((obj[:, 2] - goal[:, 2]) < 0.004)
+        press = tcp - torch.tensor([0.0, 0.0, 1.0], device=self.device)  # far below: max_speed sets the push
+        target = torch.where(on_surface[:, None], press, target)
+        hold = torch.where((phase == P.STOP)[:, None] | (phase == P.OPEN)[:, None], tcp.detach(), target)
+        target = torch.where((phase == P.STOP)[:, None] | (phase == P.OPEN)[:, None], hold, target)
+        retreat = self.release_point + torch.tensor([0.0, 0.0, RETREAT_HEIGHT_M], device=self.device)
+        target = torch.where((phase == P.RETREAT)[:, None] | (phase == P.HOVER)[:, None], retreat, target)
+        near = (obj[:, 2] - goal[:, 2]) < TOUCH_ZONE_M
+        max_speed = torch.full((self.n,), TRANSPORT_SPEED_MPS, device=self.device)
+        max_speed = torch.where(phase == P.ALIGN, torch.full_like(max_speed, 0.15), max_speed)
+        max_speed = torch.where(phase == P.DESCEND, torch.where(near, TOUCH_SPEED_MPS, DESCEND_SPEED_MPS), max_speed)
+        max_speed = torch.where(on_surface, torch.full_like(max_speed, PRESS_SPEED_MPS), max_speed)
+        max_speed = torch.where((phase == P.STOP) | (phase == P.OPEN), torch.zeros_like(max_speed), max_speed)
+        max_speed = torch.where(phase == P.RETREAT, torch.full_like(max_speed, RETREAT_SPEED_MPS), max_speed)
+        max_speed = torch.where(phase == P.HOVER, torch.full_like(max_speed, 0.1), max_speed)
+        released = (phase == P.OPEN) | (phase == P.RETREAT) | (phase == P.HOVER)
+        gripper = torch.where(released, torch.ones(self.n, device=self.device), torch.full((self.n,), -1.0, device=self.device))
+        return self.action(target, max_speed, self.heading, gripper)
+
+
+__all__ = ["PlaceExpert", "PlacePhase", "wrap_angle"]

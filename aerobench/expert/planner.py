@@ -1,0 +1,206 @@
+"""Geometric route planner over a procedural layout: collision-free flight paths for the drone.
+
+Planning happens once per episode (or chain stage) per env, on the reset path, in numpy; following the route is
+batched (`RouteFollower`). A route is a list of waypoints of the airframe centre:
+1. the straight segment if the drone's proxy points stay clear of every box along it;
+2. otherwise climb (or descend) to a cruise altitude, A* over a 2-D occupancy grid of that altitude slab (8-connected,
+   cells blocked where a disk of the drone's reach around the centre meets a box overlapping the slab), shortcut by
+   line of sight, then the vertical segment down to the goal. Cruise altitudes are tried from the goal's upwards.
+Returns None when no route exists (the episode start is then infeasible for the expert).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from ..envs.scenes.layout import Box
+
+CELL_M = 0.10
+SEGMENT_STEP_M = 0.05
+CLEARANCE_M = 0.08  # proxy points must stay this far from boxes along a straight segment
+CRUISE_ALTITUDES_M = (1.3, 1.5, 1.7, 1.9, 2.1, 2.4, 2.7, 3.0)  # tried low to high, within the workspace
+SLAB_ABOVE_M = 0.12  # rotor disks are 0.06 m above the centre, plus margin
+MAX_EXPANSIONS = 200_000
+START_SKIP_M = 0.10
+HANG_RADIUS_M = 0.06  # the gripper (and a held object) below the drone, as a small ring  # the drone is at the start: its first 10 cm are not re-checked
+
+
+def boxes_array(boxes: Sequence[Box]) -> np.ndarray:
+    return np.array([[*b.center, *b.half_size, b.yaw] for b in boxes], dtype=np.float64).reshape(-1, 7)
+
+
+def _point_box_distance(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(P, 3) points against (B, 7) boxes -> (P, B) signed distance."""
+    d = points[:, None, :] - boxes[None, :, :3]
+    c, s = np.cos(boxes[:, 6]), np.sin(boxes[:, 6])
+    local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1], d[..., 2]], -1)
+    q = np.abs(local) - boxes[None, :, 3:6]
+    return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(-1), 0)
+
+
+def _rect_distance_2d(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    d = points[:, None, :2] - boxes[None, :, :2]
+    c, s = np.cos(boxes[:, 6]), np.sin(boxes[:, 6])
+    local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
+    q = np.abs(local) - boxes[None, :, 3:5]
+    return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(-1), 0)
+
+
+class RoutePlanner:
+    """Plans for one env's layout. `proxy` are the drone's body points (level, any heading is covered by using the
+    points' horizontal radius), `below` how far the drone's hanging parts (gripper, held object) reach under the
+    centre, `reach` its horizontal radius."""
+
+    def __init__(
+        self, boxes: np.ndarray, workspace_lo, workspace_hi, reach: float, below: float, footprint: np.ndarray | None = None
+    ):
+        self.boxes = boxes
+        self.lo, self.hi = np.asarray(workspace_lo, dtype=float), np.asarray(workspace_hi, dtype=float)
+        self.reach, self.below = reach, below
+        self.footprint = footprint  # (P, 3) offsets of the drone at its flight heading; None: a circle of `reach`
+
+    # straight segments ------------------------------------------------------------------------------------------------
+    def _column_points(self, centres: np.ndarray) -> np.ndarray:
+        """Sample points of the drone around each centre: its real footprint at the flight heading when known,
+        otherwise a cylinder of radius `reach` from `below` to the disks (any heading)."""
+        if self.footprint is not None:
+            return (centres[:, None, :] + self.footprint[None]).reshape(-1, 3)
+        ring = [(self.reach * math.cos(a), self.reach * math.sin(a)) for a in np.linspace(0, 2 * math.pi, 12, endpoint=False)]
+        offsets = [(x, y, z) for x, y in ring + [(0.0, 0.0)] for z in (SLAB_ABOVE_M - 0.05, -self.below)]
+        offsets += [(0.0, 0.0, -self.below / 2)]
+        return (centres[:, None, :] + np.asarray(offsets)[None]).reshape(-1, 3)
+
+    def segment_free(self, a: np.ndarray, b: np.ndarray, skip_start_m: float = 0.0) -> bool:
+        """Whether the drone can fly from `a` to `b`; the first `skip_start_m` are not checked (it is already there)."""
+        length = float(np.linalg.norm(b - a))
+        n = max(2, int(length / SEGMENT_STEP_M) + 1)
+        t = np.linspace(min(skip_start_m / max(length, 1e-9), 1.0), 1, n)
+        centres = a[None] + t[:, None] * (b - a)[None]
+        if len(self.boxes) == 0:
+            return True
+        return bool(_point_box_distance(self._column_points(centres), self.boxes).min() > CLEARANCE_M)
+
+    # grid search -----------------------------------------------------------------------------------------------------
+    def _occupancy(self, z: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        xs = np.arange(self.lo[0] + CELL_M / 2, self.hi[0], CELL_M)
+        ys = np.arange(self.lo[1] + CELL_M / 2, self.hi[1], CELL_M)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        cells = np.stack([gx.ravel(), gy.ravel()], -1)
+        lo_z, hi_z = z - self.below, z + SLAB_ABOVE_M
+        in_slab = (self.boxes[:, 2] + self.boxes[:, 5] > lo_z) & (self.boxes[:, 2] - self.boxes[:, 5] < hi_z)
+        blocked = np.zeros(len(cells), dtype=bool)
+        if in_slab.any():
+            blocked = _rect_distance_2d(cells, self.boxes[in_slab]).min(-1) < self.reach + CLEARANCE_M
+        margin = self.reach + 0.05
+        blocked |= (cells[:, 0] < self.lo[0] + margin) | (cells[:, 0] > self.hi[0] - margin)
+        blocked |= (cells[:, 1] < self.lo[1] + margin) | (cells[:, 1] > self.hi[1] - margin)
+        return xs, ys, blocked.reshape(len(xs), len(ys))
+
+    @staticmethod
+    def _astar(blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> list[tuple[int, int]] | None:
+        # The drone is at the start and will be at the goal; their cells count as free even when the conservative
+        # disk touches a box (the vertical segments to them were checked with the drone's real footprint).
+        blocked = blocked.copy()
+        blocked[start] = blocked[goal] = False
+        moves = [(1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0)] + [
+            (dx, dy, math.sqrt(2)) for dx in (-1, 1) for dy in (-1, 1)
+        ]
+        openq = [(0.0, 0.0, start)]
+        came: dict[tuple[int, int], tuple[int, int]] = {}
+        cost = {start: 0.0}
+        expansions = 0
+        while openq and expansions < MAX_EXPANSIONS:
+            _, g, cur = heapq.heappop(openq)
+            if cur == goal:
+                path = [cur]
+                while cur in came:
+                    cur = came[cur]
+                    path.append(cur)
+                return path[::-1]
+            if g > cost.get(cur, math.inf):
+                continue
+            expansions += 1
+            for dx, dy, w in moves:
+                nxt = (cur[0] + dx, cur[1] + dy)
+                if not (0 <= nxt[0] < blocked.shape[0] and 0 <= nxt[1] < blocked.shape[1]) or blocked[nxt]:
+                    continue
+                ng = g + w
+                if ng < cost.get(nxt, math.inf):
+                    cost[nxt], came[nxt] = ng, cur
+                    h = math.hypot(goal[0] - nxt[0], goal[1] - nxt[1])
+                    heapq.heappush(openq, (ng + h, ng, nxt))
+        return None
+
+    def _shortcut(self, points: list[np.ndarray]) -> list[np.ndarray]:
+        out, i = [points[0]], 0
+        while i < len(points) - 1:
+            j = len(points) - 1
+            while j > i + 1 and not self.segment_free(points[i], points[j]):
+                j -= 1
+            out.append(points[j])
+            i = j
+        return out
+
+    def plan(self, start: np.ndarray, goal: np.ndarray) -> list[np.ndarray] | None:
+        start, goal = np.asarray(start, float), np.asarray(goal, float)
+        if self.segment_free(start, goal, START_SKIP_M):
+            return [goal]
+        altitudes = sorted({*CRUISE_ALTITUDES_M, float(max(start[2], goal[2]))})
+        for z in altitudes:
+            if z + SLAB_ABOVE_M > self.hi[2] - 0.1 or z - self.below < self.lo[2] + 0.1:
+                continue
+            up, over = np.array([start[0], start[1], z]), np.array([goal[0], goal[1], z])
+            if not (self.segment_free(start, up, START_SKIP_M) and self.segment_free(over, goal)):
+                continue
+            xs, ys, blocked = self._occupancy(z)
+            path = self._astar(blocked, _cell(up, xs, ys), _cell(over, xs, ys))
+            if path is None:
+                continue
+            points = [up] + [np.array([xs[i], ys[j], z]) for i, j in path[1:-1]] + [over]
+            return self._shortcut(points) + [goal]
+        return None
+
+
+def _cell(p: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> tuple[int, int]:
+    return (
+        int(np.clip(round((p[0] - xs[0]) / CELL_M), 0, len(xs) - 1)),
+        int(np.clip(round((p[1] - ys[0]) / CELL_M), 0, len(ys) - 1)),
+    )
+
+
+def planner_for(
+    env, env_index: int, carrying_depth: float = 0.0, heading: float | None = None, arm_q: torch.Tensor | None = None
+) -> RoutePlanner:
+    """A planner for env `env_index` of an aerobench skill env (its layout boxes plus fixtures in their state now).
+
+    With `heading`, straight segments are checked with the drone's real footprint turned to that heading (rotor-disk
+    rims, frame, gripper or arm at `arm_q`, and whatever hangs below), which the expert then keeps while flying.
+    """
+    boxes = env.obstacle_boxes(torch.tensor([env_index], device=env.device))[0].cpu().numpy()
+    boxes = boxes[boxes[:, 7] > 0.5][:, :7].astype(np.float64)
+    platform = env.platform
+    reach = platform.rotors.arm_m * math.sqrt(2) + platform.rotors.disk_radius_m
+    if platform.arm is not None:
+        reach = max(reach, platform.grasp_point_m[0] + 0.05)
+    below = (0.05 if platform.arm is not None else -platform.grasp_point_m[2] + 0.03) + carrying_depth
+    footprint = None
+    if heading is not None:
+        pts = [p for p in env.proxy_points.cpu().numpy()]
+        if platform.arm is not None:
+            from ..envs.control.arm import arm_point_positions_body
+
+            q = torch.tensor([platform.arm.working_pose_rad]) if arm_q is None else arm_q.reshape(1, 3).cpu()
+            fk = arm_point_positions_body(q, platform.arm)
+            pts += [fk[k][0].numpy() for k in ("shoulder", "elbow", "wrist")]
+        c, s = math.cos(heading), math.sin(heading)
+        rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+        hanging = [(0.0, 0.0, -below)] + [(HANG_RADIUS_M * math.cos(a), HANG_RADIUS_M * math.sin(a), -below) for a in (0, 1.57, 3.14, 4.71)]
+        footprint = np.concatenate([np.asarray(pts) @ rot.T, np.asarray(hanging)])
+    return RoutePlanner(
+        boxes, env.workspace_lo[env_index].cpu().numpy(), env.workspace_hi[env_index].cpu().numpy(), reach, below, footprint
+    )

@@ -1,0 +1,32 @@
+"""Export: the rollout runner's episodes as a LeRobotDataset v3 with aerobench annotations.
+
+- `depth`: the lossless depth codec (uint16 millimetres packed into an RGB uint8 image: R high byte, G low byte).
+- `features`: the LeRobot feature dict for an episode's shape (cameras or state-only, gripper or arm) and the
+  per-frame dicts `add_frame` takes.
+- `sink`: `DatasetSink`, the crash-safe `EpisodeSink` that writes finalized parts and merges them into the root.
+- `tools`: `dataset_info` / `format_info`, `filter_dataset`, `merge` (shards' parts) and `clean_parts`.
+
+docs/datasets.md documents the on-disk layout and every column.
+"""
+
+from .depth import decode_depth_mm, encode_depth_mm
+from .features import FPS, build_features, episode_features, robot_type
+from .sink import DatasetSink, read_jsonl, record_from_row
+from .tools import clean_parts, dataset_info, filter_dataset, format_info, merge
+
+__all__ = [
+    "FPS",
+    "DatasetSink",
+    "build_features",
+    "clean_parts",
+    "dataset_info",
+    "decode_depth_mm",
+    "encode_depth_mm",
+    "episode_features",
+    "filter_dataset",
+    "format_info",
+    "merge",
+    "read_jsonl",
+    "record_from_row",
+    "robot_type",
+]

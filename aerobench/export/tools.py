@@ -1,0 +1,215 @@
+"""Dataset tools: what a dataset holds (`dataset_info`, `format_info`), a filtered copy (`filter_dataset`), merging
+shards' parts (`merge`) and reclaiming the parts' disk space (`clean_parts`).
+
+`aerobench dataset info DIR` prints `format_info(dataset_info(DIR))`; `aerobench dataset merge DIR` calls `merge(DIR)`.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections import Counter
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..annotation.record import OUTCOME_CODES
+from .features import LEROBOT_DEFAULT_KEYS
+from .sink import (
+    DATASET_META_FILE,
+    EPISODES_FILE,
+    LEROBOT_DIRS,
+    RECORDS_FILE,
+    _merge_lock,
+    bookkeeping_dir,
+    completed_parts,
+    merge_parts,
+    part_has_dataset,
+    part_rows,
+    read_dataset_meta,
+    read_jsonl,
+    write_jsonl,
+)
+
+COUNT_FIELDS = ("setting", "skill", "object", "outcome", "mode")
+FILTERED_REPO_ID = "local/aerobench-source"
+# meta goes first: a part without meta/info.json counts as cleaned, so a crash mid-clean never looks like a full part.
+CLEAN_ORDER = ("meta", "data", "videos")
+
+
+def _lerobot_info(root: Path) -> dict | None:
+    path = root / "meta" / "info.json"
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def _feature_table(features: dict) -> dict[str, dict]:
+    return {
+        key: {"dtype": ft["dtype"], "shape": list(ft["shape"])}
+        for key, ft in features.items()
+        if key not in LEROBOT_DEFAULT_KEYS
+    }
+
+
+def dataset_info(root: str | Path) -> dict:
+    """What a dataset folder holds: episode counts by setting, skill, object, outcome and mode, frames, features.
+
+    Counts describe the LeRobot dataset's episodes (root/meta/aerobench_episodes.jsonl); before any merge they come
+    from the parts' records (the episodes that will be in the dataset). "processed" counts every episode the
+    generation handled, kept or not; "unmerged_parts" counts committed parts not yet in the merged dataset.
+    """
+    root = Path(root)
+    info = _lerobot_info(root)
+    parts = completed_parts(root)
+    processed = [row for part in parts for row in part_rows(part)]
+    if not processed:
+        processed = read_jsonl(bookkeeping_dir(root) / RECORDS_FILE)
+    if info is None and not bookkeeping_dir(root).is_dir():
+        raise ValueError(f"{root} is neither a LeRobot dataset (no meta/info.json) nor an aerobench generation folder")
+    merged_parts = set((read_dataset_meta(root) or {}).get("parts", []))
+    if info is not None:
+        episodes = read_jsonl(root / "meta" / EPISODES_FILE)
+        frames, features = info["total_frames"], info["features"]
+    else:
+        episodes = [row for row in processed if row["in_dataset"]]
+        frames = sum(int(row["steps"]) for row in episodes)
+        part_info = next((_lerobot_info(p) for p in parts if part_has_dataset(p)), None)
+        features = part_info["features"] if part_info else {}
+        info = part_info or {}
+    return {
+        "root": str(root),
+        "merged": (root / "meta" / "info.json").is_file(),
+        "episodes": len(episodes),
+        "frames": int(frames),
+        "fps": info.get("fps"),
+        "robot_type": info.get("robot_type"),
+        "processed": len(processed),
+        "not_kept": sum(1 for row in processed if not row["in_dataset"]),
+        "parts": len(parts),
+        "unmerged_parts": sum(1 for p in parts if p.name not in merged_parts),
+        "counts": {name: dict(Counter(str(row[name]) for row in episodes).most_common()) for name in COUNT_FIELDS},
+        "features": _feature_table(features),
+    }
+
+
+def format_info(info: dict) -> str:
+    """`dataset_info`'s dict as a readable plain-text table."""
+    lines = [
+        f"dataset   {info['root']}  ({'merged' if info['merged'] else 'not merged yet'})",
+        f"episodes  {info['episodes']}   frames {info['frames']}   fps {info['fps']}   robot {info['robot_type']}",
+        f"processed {info['processed']} ({info['not_kept']} not kept)   "
+        f"parts {info['parts']} ({info['unmerged_parts']} not merged)",
+        "",
+    ]
+    width = max(len(name) for name in COUNT_FIELDS)
+    for name in COUNT_FIELDS:
+        counts = info["counts"][name]
+        cells = "   ".join(f"{value} {n}" for value, n in counts.items()) or "-"
+        lines.append(f"{name:<{width}}  {cells}")
+    if info["features"]:
+        lines += ["", "features"]
+        key_width = max(len(key) for key in info["features"])
+        for key, ft in info["features"].items():
+            shape = "x".join(str(n) for n in ft["shape"])
+            lines.append(f"  {key:<{key_width}}  {ft['dtype']:<8} {shape}")
+    return "\n".join(lines)
+
+
+def _matches(row: dict, criteria: dict[str, set[str] | None]) -> bool:
+    return all(allowed is None or str(row[field]) in allowed for field, allowed in criteria.items())
+
+
+def _as_set(values: Iterable[str] | None) -> set[str] | None:
+    if values is None:
+        return None
+    return {values} if isinstance(values, str) else {str(v) for v in values}
+
+
+def filter_dataset(
+    src_root: str | Path,
+    dst_root: str | Path,
+    *,
+    outcomes: Iterable[str] | None = None,
+    modes: Iterable[str] | None = None,
+    skills: Iterable[str] | None = None,
+    objects: Iterable[str] | None = None,
+) -> Path:
+    """Write a new LeRobot dataset at `dst_root` with the episodes of `src_root` that match every given filter.
+
+    A filter left None matches everything; `skills` matches the record's skill (or chain name). The episodes keep
+    their order; dst/meta/aerobench_episodes.jsonl holds their rows with `dataset_episode_index` renumbered.
+    Uses LeRobot's `delete_episodes` (videos of dropped episodes are cut out and re-encoded).
+    """
+    from lerobot.datasets.dataset_tools import delete_episodes
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    src, dst = Path(src_root), Path(dst_root)
+    info = _lerobot_info(src)
+    if info is None:
+        raise ValueError(f"{src} holds no merged LeRobot dataset (run `aerobench dataset merge {src}` first)")
+    criteria = {
+        "outcome": _as_set(outcomes),
+        "mode": _as_set(modes),
+        "skill": _as_set(skills),
+        "object": _as_set(objects),
+    }
+    bad = (criteria["outcome"] or set()) - set(OUTCOME_CODES)
+    if bad:
+        raise ValueError(f"unknown outcomes {sorted(bad)}; outcomes are {', '.join(OUTCOME_CODES)}")
+    rows = sorted(read_jsonl(src / "meta" / EPISODES_FILE), key=lambda r: r["dataset_episode_index"])
+    if len(rows) != info["total_episodes"]:
+        raise ValueError(f"{src}: {EPISODES_FILE} lists {len(rows)} episodes, the dataset has {info['total_episodes']}")
+    selected = [row for row in rows if _matches(row, criteria)]
+    chosen = {field: sorted(allowed) for field, allowed in criteria.items() if allowed is not None}
+    if not selected:
+        raise ValueError(f"no episode of {src} matches {chosen}")
+    if dst.exists() and (not dst.is_dir() or any(dst.iterdir())):
+        raise ValueError(f"{dst} already exists and is not empty; choose another output folder")
+    if dst.exists():
+        dst.rmdir()  # LeRobot creates the folder itself and refuses an existing one
+    if len(selected) == len(rows):
+        dst.mkdir(parents=True)
+        for name in LEROBOT_DIRS:
+            if (src / name).exists():
+                shutil.copytree(src / name, dst / name)
+    else:
+        keep = {row["dataset_episode_index"] for row in selected}
+        drop = [row["dataset_episode_index"] for row in rows if row["dataset_episode_index"] not in keep]
+        source = LeRobotDataset(FILTERED_REPO_ID, root=src)
+        delete_episodes(source, drop, output_dir=dst, repo_id=f"local/{dst.name}")
+    write_jsonl(dst / "meta" / EPISODES_FILE, [{**row, "dataset_episode_index": i} for i, row in enumerate(selected)])
+    meta = read_dataset_meta(src) or {}
+    meta = {k: v for k, v in meta.items() if k != "parts"}
+    meta.update(source=str(src), filter=chosen)
+    (dst / "meta" / DATASET_META_FILE).write_text(json.dumps(meta, indent=2) + "\n")
+    return dst
+
+
+def merge(root: str | Path) -> Path | None:
+    """Merge whatever committed parts `root` holds (all shards) into the LeRobot dataset at `root`.
+
+    Call after every shard finished (`aerobench dataset merge DIR`), also after copying other machines' parts into
+    root/.aerobench/parts. Re-running it is safe and finishes an interrupted merge. Returns None if no episode was
+    kept (then only the records are written).
+    """
+    return merge_parts(root)
+
+
+def clean_parts(root: str | Path) -> int:
+    """Merge, then delete the parts' LeRobot data (their records stay, so a resume still skips those episodes).
+
+    Returns the bytes freed. Afterwards a merge appends new parts to the merged dataset instead of re-merging.
+    """
+    root = Path(root)
+    if merge_parts(root) is None:
+        return 0
+    freed = 0
+    with _merge_lock(root):
+        merged = set((read_dataset_meta(root) or {}).get("parts", []))
+        for part in completed_parts(root):
+            if part.name not in merged:
+                continue
+            for name in CLEAN_ORDER:
+                folder = part / name
+                if folder.exists():
+                    freed += sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
+                    shutil.rmtree(folder)
+    return freed

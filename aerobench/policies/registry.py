@@ -1,0 +1,47 @@
+"""The policy registry: a name -> factory map filled by `@register_policy` at import time."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol
+
+import torch
+
+POLICIES: dict[str, Callable[..., Policy]] = {}
+
+
+class Policy(Protocol):
+    name: str
+
+    def reset(self, env_idx: torch.Tensor) -> None:
+        """Episodes start (again) in envs `env_idx`."""
+
+    def act(self, obs) -> torch.Tensor:
+        """`(N, A)` normalized actions for the current observation of every env."""
+
+
+def register_policy(name: str):
+    def decorate(factory):
+        POLICIES[name] = factory
+        return factory
+
+    return decorate
+
+
+def make_policy(name: str, env, checkpoint: str | None = None, **kwargs) -> Policy:
+    """Build policy `name` for `env` (the unwrapped aerobench env); unknown names list the valid ones."""
+    from . import builtin  # noqa: F401  (registers expert and random)
+
+    if name not in POLICIES:
+        raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
+    return POLICIES[name](env, checkpoint=checkpoint, **kwargs)
+
+
+def policy_needs_images(name: str, checkpoint: str | None = None) -> bool:
+    """Whether policy `name` reads camera images (the runner then renders the three RGB-D cameras)."""
+    from . import builtin  # noqa: F401
+
+    if name not in POLICIES:
+        raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
+    needs = getattr(POLICIES[name], "needs_images", None)
+    return bool(needs(checkpoint)) if callable(needs) else False

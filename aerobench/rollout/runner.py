@@ -1,0 +1,295 @@
+"""The one rollout runner: env + policy -> per-step signals -> annotation -> episode records, handed to a sink.
+
+Data generation (`aerobench generate`) and evaluation (`aerobench eval`) both run it; they differ only in the policy
+and the sink. Episodes are planned up front (`plan_episodes`): episode i has a fixed seed, skill and object, so
+the same command gives the same episodes, `--shard i/k` takes every k-th index, and a rerun skips what its sink
+already holds. physx_cpu runs one env per process (use shards for parallelism); with physx_cuda, `num_envs`
+episodes of the same skill run as one batch.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+from ..annotation import EpisodeRecord, categorize, cut_segments
+from ..envs.checker import SKILL_ENV_IDS
+from ..envs.tasks import SKILLS, get_setting
+from ..policies import make_policy
+from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
+
+SEED_STRIDE = 1_000_003  # episode seed = base seed * stride + episode index: distinct streams per base seed
+
+
+@dataclass(frozen=True)
+class RolloutSpec:
+    """What to run. `skills` are skill names of the setting or one chain name (a sequential rollout)."""
+
+    setting: str
+    skills: tuple[str, ...]
+    episodes: int
+    objects: tuple[str, ...] | None = None
+    num_envs: int = 1
+    seed: int = 0
+    shard: tuple[int, int] = (0, 1)
+    policy: str = "expert"
+    checkpoint: str | None = None
+    record_cameras: bool = True
+    platform: str | None = None
+    controller: str = "payload-aware"
+    sim_backend: str = "physx_cpu"
+    max_steps: int | None = None  # override the env's episode length
+
+    def __post_init__(self):
+        setting = get_setting(self.setting)
+        if not self.skills:
+            raise ValueError("name at least one skill (or a chain)")
+        chains = [s for s in self.skills if s in setting.chains]
+        if chains and len(self.skills) > 1:
+            raise ValueError(f"a chain ({chains[0]}) runs alone; give either skills or one chain")
+        for skill in self.skills:
+            if skill not in setting.chains:
+                if skill not in SKILLS:
+                    valid = ", ".join(list(setting.skills) + list(setting.chains))
+                    raise ValueError(f"unknown skill {skill!r}; valid for {setting.name}: {valid}")
+                setting.check_skill(skill)
+        for obj in self.objects or ():
+            setting.check_object(obj)
+        if not (isinstance(self.episodes, int) and self.episodes > 0):
+            raise ValueError(f"--episodes must be a positive integer, got {self.episodes}")
+        i, k = self.shard
+        if not (k >= 1 and 0 <= i < k):
+            raise ValueError(f"--shard must be i/k with 0 <= i < k, got {i}/{k}")
+        if self.num_envs < 1:
+            raise ValueError(f"--num-envs must be at least 1, got {self.num_envs}")
+        if self.sim_backend == "physx_cpu" and self.num_envs != 1:
+            raise ValueError("physx_cpu runs one env per process: use --shard i/k to run several processes")
+
+    @property
+    def is_chain(self) -> bool:
+        return self.skills[0] in get_setting(self.setting).chains
+
+    def as_dict(self) -> dict:
+        return {
+            "setting": self.setting, "skills": list(self.skills), "episodes": self.episodes,
+            "objects": list(self.objects) if self.objects else None, "seed": self.seed, "policy": self.policy,
+            "checkpoint": self.checkpoint, "record_cameras": self.record_cameras, "platform": self.platform,
+            "controller": self.controller, "shard": list(self.shard),
+        }
+
+
+@dataclass(frozen=True)
+class EpisodePlan:
+    index: int
+    seed: int
+    skill: str  # a skill or the chain's name
+    object: str | None
+
+
+def plan_episodes(spec: RolloutSpec) -> list[EpisodePlan]:
+    """Every episode of the run (all shards): skills round-robin, then objects round-robin (balanced per class)."""
+    setting = get_setting(spec.setting)
+    objects = spec.objects or (setting.objects if _uses_object(spec) else (None,))
+    plans = []
+    for i in range(spec.episodes):
+        skill = spec.skills[i % len(spec.skills)]
+        obj = objects[(i // len(spec.skills)) % len(objects)]
+        plans.append(EpisodePlan(i, spec.seed * SEED_STRIDE + i, skill, obj))
+    return plans
+
+
+def _uses_object(spec: RolloutSpec) -> bool:
+    return any(s not in ("nav", "open", "close") for s in spec.skills)
+
+
+def shard_plans(spec: RolloutSpec) -> list[EpisodePlan]:
+    i, k = spec.shard
+    return [p for p in plan_episodes(spec) if p.index % k == i]
+
+
+@dataclass
+class Progress:
+    """Counts the runner reports after every episode (for a progress bar)."""
+
+    total: int
+    done: int = 0
+    successes: int = 0
+    started: float = field(default_factory=time.monotonic)
+    run_done: int = 0  # episodes finished by this process (for the rate)
+
+    @property
+    def rate_per_min(self) -> float:
+        return 60.0 * self.run_done / max(time.monotonic() - self.started, 1e-9)
+
+    @property
+    def eta_s(self) -> float:
+        return (self.total - self.done) * 60.0 / self.rate_per_min if self.run_done else math.inf
+
+
+class RolloutRunner:
+    """Runs a spec's episodes into a sink."""
+
+    def __init__(self, spec: RolloutSpec, sink: EpisodeSink, on_episode: Callable[[EpisodeData, Progress], None] | None = None):
+        self.spec, self.sink, self.on_episode = spec, sink, on_episode
+        self._envs: dict[str, gym.Env] = {}
+
+    def _env(self, skill: str) -> gym.Env:
+        if skill not in self._envs:
+            spec = self.spec
+            kwargs = dict(
+                setting=spec.setting, obs_mode="rgbd" if spec.record_cameras else "state_dict",
+                num_envs=spec.num_envs, sim_backend=spec.sim_backend, controller=spec.controller,
+            )
+            if spec.platform:
+                kwargs["platform"] = spec.platform
+            if spec.max_steps:
+                kwargs["max_episode_steps"] = spec.max_steps
+            if spec.is_chain:
+                env_id, kwargs["chain"] = "AeroSequential-v1", skill
+            else:
+                env_id = SKILL_ENV_IDS[skill]
+            self._envs[skill] = gym.make(env_id, **kwargs)
+        return self._envs[skill]
+
+    def run(self) -> Progress:
+        plans = shard_plans(self.spec)
+        done = self.sink.done_indices()
+        todo = [p for p in plans if p.index not in done]
+        progress = Progress(total=len(plans), done=len(plans) - len(todo))
+        n = self.spec.num_envs
+        try:
+            for start in range(0, len(todo), n):
+                batch = todo[start : start + n]
+                by_skill: dict[str, list[EpisodePlan]] = {}
+                for plan in batch:
+                    by_skill.setdefault(plan.skill, []).append(plan)
+                for skill, plans_of_skill in by_skill.items():
+                    for episode in self._run_batch(skill, plans_of_skill):
+                        self.sink.write(episode)
+                        progress.done += 1
+                        progress.run_done += 1
+                        progress.successes += episode.record.outcome == "S"
+                        if self.on_episode:
+                            self.on_episode(episode, progress)
+            self.sink.flush()
+        finally:
+            for env in self._envs.values():
+                env.close()
+        return progress
+
+    # ------------------------------------------------------------------------------------------------------------------
+    def _run_batch(self, skill: str, plans: list[EpisodePlan]) -> list[EpisodeData]:
+        env = self._env(skill)
+        base = env.unwrapped
+        n = base.num_envs
+        objects = [p.object for p in plans] + [plans[-1].object] * (n - len(plans))
+        seeds = [p.seed for p in plans] + [plans[-1].seed] * (n - len(plans))
+        options = {"reconfigure": True}
+        if objects[0] is not None:
+            options["objects"] = objects
+        obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options=options)
+        policy = make_policy(self.spec.policy, base, checkpoint=self.spec.checkpoint)
+        policy.reset(torch.arange(n, device=base.device))
+        max_steps = env.spec.max_episode_steps or 1000
+        evaluators = [ev.skill for ev in base.evaluators]
+        active = torch.ones(n, dtype=torch.bool)
+        active[len(plans):] = False
+        init_failed = info["init_failed"].cpu().clone()
+        if hasattr(policy, "infeasible"):  # the expert's planner rejects starts it has no route from
+            init_failed |= policy.infeasible().cpu()
+        active &= ~init_failed
+        steps = torch.zeros(n, dtype=torch.long)
+        truncated_at = torch.zeros(n, dtype=torch.bool)
+        frames: list[dict] = []
+        signals: list[dict] = []
+        tasks = [base.get_instruction(i) for i in range(n)]
+        for _ in range(max_steps):
+            if not active.any():
+                break
+            action = policy.act(obs)
+            if not torch.isfinite(action).all():
+                raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")
+            frame = self._frame(obs, action, base, policy)
+            obs, _, terminated, truncated, info = env.step(action)
+            frames.append(frame)
+            signals.append({k: v.detach().cpu() for k, v in info.items() if torch.is_tensor(v) and v.shape[:1] == (n,)})
+            live = active.clone()
+            steps += live.long()
+            ended = (terminated.cpu() | truncated.cpu()) & live
+            truncated_at |= truncated.cpu() & ~terminated.cpu() & live
+            active &= ~ended
+            for row in range(len(frames[-1]["_active"])):
+                frames[-1]["_active"][row] = bool(live[row])
+        truncated_at |= active  # still running when the budget ran out
+        return [
+            self._episode(
+                plans[i], i, frames, signals, int(steps[i]), bool(truncated_at[i]), bool(init_failed[i]), tasks[i],
+                evaluators, base, env.spec.id,
+            )
+            for i in range(len(plans))
+        ]
+
+    def _frame(self, obs, action, base, policy) -> dict:
+        n = base.num_envs
+        frame = {
+            "state": obs["agent"]["state"].detach().cpu().numpy().astype(np.float32),
+            "action": action.detach().cpu().numpy().astype(np.float32),
+            "phase": policy.phase().cpu().numpy() if hasattr(policy, "phase") else np.full(n, -1),
+            "_active": [True] * n,
+        }
+        if self.spec.record_cameras:
+            for cam in CAMERAS:
+                frame[f"rgb/{cam}"] = obs["sensor_data"][cam]["rgb"].cpu().numpy()
+                frame[f"depth/{cam}"] = obs["sensor_data"][cam]["depth"][..., 0].cpu().numpy().clip(0).astype(np.uint16)
+        return frame
+
+    def _episode(self, plan, row, frames, signals, steps, truncated, init_failed, task, evaluators, base, env_id) -> EpisodeData:
+        spec = self.spec
+        trace = {k: np.stack([s[k][row].numpy() for s in signals[:steps]]) for k in signals[0]} if steps else {}
+        segments = ()
+        if init_failed or not spec.is_chain:
+            outcome = categorize(evaluators[0], trace, truncated, init_failed=init_failed)
+        else:  # a chain: the stage that ended the rollout names its mode; S only if every stage succeeded
+            segments = tuple(cut_segments(trace, evaluators, truncated, parent_id=f"{spec.setting}/{plan.skill}/{plan.index}"))
+            outcome = segments[-1].outcome
+        record = EpisodeRecord.from_outcome(
+            outcome,
+            episode_index=plan.index,
+            parent_id=f"{spec.setting}/{plan.skill}/{plan.index}",
+            seed=plan.seed,
+            shard=spec.shard[0],
+            setting=spec.setting,
+            skill=plan.skill,
+            object=base.target_specs[row].name if base.target is not None else (plan.object or ""),
+            platform=base.platform.name,
+            policy=spec.policy,
+            segments=segments,
+        )
+        data = {}
+        if steps:
+            for key in frames[0]:
+                if key.startswith("_"):
+                    continue
+                data[key] = np.stack([f[key][row] for f in frames[:steps]])
+            data["events"] = np.stack([trace.get(k, np.zeros(steps)).astype(np.float32) for k in EVENT_FLAGS], -1)
+            stage = trace.get("subtask_index", np.zeros(steps)).astype(np.int64)
+            # the env reports the stage after the step; the stage acting on step t is the one before it
+            acting = np.concatenate([[0], stage[:-1]]) if len(stage) else stage
+            data["stage"] = acting
+            data["skill"] = np.array([SKILLS.index(evaluators[min(s, len(evaluators) - 1)]) for s in acting], dtype=np.int64)
+            data["phase"] = data["phase"].astype(np.int64)
+        extra = {
+            "env_id": env_id,
+            "object_mass_kg": float(base.target_mass[row]) if base.target is not None else None,
+            "instruction": task,
+            "chain": plan.skill if spec.is_chain else None,
+            "init_failed": init_failed,
+        }
+        return EpisodeData(record=record, frames=data, task=task, skills=tuple(evaluators), extra=extra)
+

@@ -1,0 +1,62 @@
+import json
+import re
+
+import pytest
+
+from aerobench.eval.leaderboard import build_leaderboard
+from aerobench.eval.results import summarize, write_results
+
+from .spec_table import OBJECTS, SPEC_MEAN_SR, SPEC_TABLE, spec_records
+
+
+@pytest.fixture
+def spec_results(tmp_path):
+    paths = []
+    for policy in SPEC_TABLE:
+        results = summarize(spec_records(policy), {"command": f"aerobench eval --policy {policy.lower()}"}, label=policy)
+        paths.append(write_results(tmp_path / "results" / f"{policy}.json", results))
+    return paths
+
+
+def test_cells_match_the_spec(spec_results):
+    results = json.loads(spec_results[2].read_text())  # PI0: pick over 30 episodes
+    cell = next(c for c in results["cells"] if c["skill"] == "pick" and c["object"] == "master_chef_can")
+    assert (cell["successes"], cell["n"]) == (2, 30)
+    assert f"{100 * cell['success_rate']:.1f} ± {100 * cell['se']:.1f}" == "6.7 ± 4.6"
+
+
+def test_markdown_mean_sr_and_bold(spec_results, tmp_path):
+    out = tmp_path / "boards"
+    build_leaderboard(spec_results, out)
+    md = (out / "PrepareGroceries.md").read_text()
+    for policy, mean in SPEC_MEAN_SR.items():
+        row = next(line for line in md.splitlines() if line.startswith(f"| {policy} |"))
+        assert row.rstrip(" |").endswith(f"{mean}") or row.rstrip(" |").endswith(f"**{mean}**"), row
+    # pi0.5 has the best mean (bold), ACT's pick bowl 18.0 is the best pick bowl (bold), the spec's order is kept
+    assert "**44.6**" in md and "**18.0 ± 5.4**" in md and "**29.5**" not in md
+    order = [m.group(1) for m in re.finditer(r"^\| (ACT|DP|PI0|PI05) \|", md.split("| Row |")[0], re.M)]
+    assert order == ["ACT", "DP", "PI0", "PI05"]
+    header = next(line for line in md.splitlines() if line.startswith("| Policy"))
+    assert header.count("|") == len(OBJECTS) + 4
+
+
+def test_latex_layout(spec_results, tmp_path):
+    build_leaderboard(spec_results, tmp_path)
+    tex = (tmp_path / "PrepareGroceries.tex").read_text()
+    assert r"\multirow{-2}{*}{\textbf{44.6}}" in tex and r"\multirow{-2}{*}{29.5}" in tex
+    assert r"{\boldmath$18.0 \pm 5.4$}" in tex and "$2.0 \\pm 2.0$" in tex
+
+
+def test_refuses_other_versions_and_duplicates(spec_results, tmp_path):
+    bad = json.loads(spec_results[0].read_text())
+    bad["version"] = 99
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(bad))
+    with pytest.raises(ValueError, match="results version 99"):
+        build_leaderboard([path], tmp_path / "x")
+    with pytest.raises(ValueError, match="two results for 'ACT'"):
+        build_leaderboard([spec_results[0], spec_results[0]], tmp_path / "y")
+    not_results = tmp_path / "other.json"
+    not_results.write_text("{}")
+    with pytest.raises(ValueError, match="not an aerobench results file"):
+        build_leaderboard([not_results], tmp_path / "z")

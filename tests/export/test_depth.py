@@ -1,0 +1,64 @@
+"""The packed depth codec: exact in memory, and exact through a real LeRobot dataset (PNG in parquet) and back."""
+
+import os
+
+import numpy as np
+import pytest
+import torch
+
+from aerobench.export.depth import decode_depth_mm, encode_depth_mm
+
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+MAX_MM = 10_000  # the issue's range: within 1 mm up to 10 m
+
+
+def random_depth(seed: int, shape=(128, 128)) -> np.ndarray:
+    depth = np.random.default_rng(seed).integers(0, MAX_MM + 1, shape, dtype=np.uint16)
+    depth[0, :4] = [0, 1, 255, 256]  # byte boundaries and "no return"
+    depth[1, :2] = [MAX_MM, np.iinfo(np.uint16).max]
+    return depth
+
+
+def test_packing_layout():
+    packed = encode_depth_mm(np.array([[0, 1, 256, 10_000]], dtype=np.uint16))
+    assert packed.dtype == np.uint8 and packed.shape == (1, 4, 3)
+    assert packed[0].tolist() == [[0, 0, 0], [0, 1, 0], [1, 0, 0], [39, 16, 0]]  # 10000 = 39 * 256 + 16
+
+
+def test_round_trip_uint8_and_lerobot_float_forms():
+    depth = random_depth(0)
+    packed = encode_depth_mm(depth[..., None])  # (H, W, 1) is accepted too
+    assert np.array_equal(decode_depth_mm(packed), depth)
+    as_lerobot = torch.from_numpy(packed).permute(2, 0, 1).float() / 255.0  # what LeRobotDataset returns
+    assert np.array_equal(decode_depth_mm(as_lerobot), depth)
+    batch = torch.stack([as_lerobot, as_lerobot])
+    assert decode_depth_mm(batch).shape == (2, 128, 128)
+
+
+def test_bad_inputs_are_rejected():
+    with pytest.raises(ValueError, match="uint16"):
+        encode_depth_mm(np.zeros((4, 4), dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        encode_depth_mm(np.zeros((4, 4, 2), dtype=np.uint16))
+    with pytest.raises(ValueError):
+        decode_depth_mm(np.zeros((4, 4, 3), dtype=np.int32))
+
+
+def test_round_trip_through_a_lerobot_dataset(tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from aerobench.export.features import IMAGE_NAMES, depth_key
+
+    key = depth_key("drone_hand")
+    features = {key: {"dtype": "image", "shape": (128, 128, 3), "names": IMAGE_NAMES}}
+    root = tmp_path / "depth"
+    dataset = LeRobotDataset.create("local/depth", 20, features, root=root, use_videos=False)
+    depths = [random_depth(seed) for seed in range(3)]
+    for depth in depths:
+        dataset.add_frame({key: encode_depth_mm(depth), "task": "look"})
+    dataset.save_episode()
+    dataset.finalize()
+
+    loaded = LeRobotDataset("local/depth", root=root)
+    for i, depth in enumerate(depths):
+        assert np.array_equal(decode_depth_mm(loaded[i][key]), depth)

@@ -1,0 +1,107 @@
+"""The rollout runner and `aerobench generate`: plans, determinism, crash-safe resume, shards, bad input."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from aerobench.rollout.runner import RolloutSpec, plan_episodes, shard_plans
+
+CLI = [sys.executable, "-m", "aerobench.cli"]
+ENV = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1", PYTHONUNBUFFERED="1")
+
+
+def _generate(out: Path, *extra: str, episodes: int = 3, timeout: int = 600) -> subprocess.CompletedProcess:
+    args = ["generate", "--setting", "TidyHouse", "--skills", "nav", "--episodes", str(episodes), "--part-size", "1",
+            "--keep", "all", "--out", str(out), *extra]
+    return subprocess.run(CLI + args, capture_output=True, text=True, timeout=timeout, env=ENV)
+
+
+def _records(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / ".aerobench" / "records.jsonl").read_text().splitlines()]
+
+
+def test_plans_are_deterministic_balanced_and_sharded():
+    spec = RolloutSpec(setting="PrepareGroceries", skills=("pick", "place"), episodes=32, seed=7)
+    plans = plan_episodes(spec)
+    assert plans == plan_episodes(spec)
+    assert [p.skill for p in plans[:4]] == ["pick", "place", "pick", "place"]
+    picks = [p.object for p in plans if p.skill == "pick"]
+    assert len(set(picks)) == 8  # all eight PrepareGroceries classes, in turn
+    assert len({p.seed for p in plans}) == 32
+    shards = [shard_plans(RolloutSpec(setting="PrepareGroceries", skills=("pick",), episodes=10, shard=(i, 3))) for i in range(3)]
+    assert sorted(p.index for s in shards for p in s) == list(range(10))
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(skills=("fly",)), "unknown skill 'fly'; valid for TidyHouse: pick, place, nav, pick_nav_place"),
+        (dict(skills=("open",)), "TidyHouse has no open skill"),
+        (dict(skills=("pick",), shard=(3, 2)), "--shard must be i/k with 0 <= i < k, got 3/2"),
+        (dict(skills=("pick",), num_envs=4), "physx_cpu runs one env per process"),
+        (dict(skills=("pick",), objects=("package",)), "object 'package' is not part of TidyHouse"),
+        (dict(skills=("pick",), episodes=0), "--episodes must be a positive integer"),
+    ],
+)
+def test_spec_errors(kwargs, message):
+    base = dict(setting="TidyHouse", episodes=4)
+    base.update(kwargs)
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        RolloutSpec(**base)
+
+
+def test_generate_is_deterministic_and_resumes_after_a_kill(tmp_path):
+    reference = tmp_path / "reference"
+    r = _generate(reference)
+    assert r.returncode == 0, r.stderr[-2000:]
+    killed = tmp_path / "killed"
+    args = ["generate", "--setting", "TidyHouse", "--skills", "nav", "--episodes", "3", "--part-size", "1",
+            "--keep", "all", "--out", str(killed)]
+    proc = subprocess.Popen(CLI + args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV)
+    parts = killed / ".aerobench" / "parts"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and not (parts.is_dir() and any(p.name.startswith("part-") for p in parts.iterdir())):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert any(p.name.startswith("part-") for p in parts.iterdir())
+    r = _generate(killed)  # the same command continues
+    assert r.returncode == 0, r.stderr[-2000:]
+    got, want = _records(killed), _records(reference)
+    assert sorted(x["episode_index"] for x in got) == [0, 1, 2]  # each episode exactly once
+    strip = lambda rows: sorted((x["episode_index"], x["seed"], x["outcome"], x["steps"], x["mode"]) for x in rows)  # noqa: E731
+    assert strip(got) == strip(want)  # the same episodes as an uninterrupted run
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ds = LeRobotDataset("local/killed", root=killed)
+    assert ds.num_episodes == 3
+
+
+def test_shards_then_merge(tmp_path):
+    out = tmp_path / "sharded"
+    for i in range(2):
+        r = _generate(out, "--shard", f"{i}/2", "--no-cameras", episodes=4)
+        assert r.returncode == 0, r.stderr[-2000:]
+    r = subprocess.run(CLI + ["dataset", "merge", str(out)], capture_output=True, text=True, timeout=300, env=ENV)
+    assert r.returncode == 0, r.stderr[-2000:]
+    info = subprocess.run(CLI + ["dataset", "info", str(out)], capture_output=True, text=True, timeout=300, env=ENV)
+    assert "episodes  4" in info.stdout and "nav 4" in info.stdout
+
+
+def test_a_folder_with_another_dataset_is_refused_untouched(tmp_path):
+    out = tmp_path / "ds"
+    assert _generate(out, "--no-cameras", episodes=1).returncode == 0
+    before = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
+    r = _generate(out, "--no-cameras", "--seed", "5", episodes=1)
+    assert r.returncode == 2 and "holds a different dataset" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == before
+    r = subprocess.run(CLI + ["generate", "--setting", "TidyHouse", "--skills", "nav", "--episodes", "1", "--shard", "3/2",
+                              "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120, env=ENV)
+    assert r.returncode == 2 and r.stderr.strip() == "aerobench generate: error: --shard must be i/k with 0 <= i < k, got 3/2"
+    assert not (tmp_path / "x").exists()
