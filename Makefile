@@ -20,6 +20,7 @@ demo: setup
 	$(VENV)/bin/aerobench demo --out outputs/demo
 
 test: setup
+	@bash scripts/setup_browser.sh
 	$(PY) -m pytest -n 2 -q tests
 
 bench: setup

@@ -74,6 +74,7 @@ def _add_demo(sub) -> None:
     p.add_argument("--no-video", action="store_true", help="skip rendering the videos")
     p.add_argument("--rollout-steps", type=int, default=60, help="length of the random-policy rollout video")
     p.add_argument("--demo-episodes", type=int, default=4, help="expert episodes generated and exported")
+    p.add_argument("--eval-episodes-per-object", type=int, default=1, help="episodes per skill-object pair evaluated")
     p.set_defaults(func=_run_demo)
 
 
@@ -129,7 +130,30 @@ def _demo_world(out: Path, args) -> list[str]:
         write_video(frames, out / "expert_pick.mp4", fps=10)
         written += ["random_rollout.mp4", "expert_pick.mp4"]
     written.append(_demo_dataset(out / "dataset", args.demo_episodes))
+    written += _demo_eval(out, args.eval_episodes_per_object)
     return written
+
+
+def _demo_eval(out: Path, per_object: int) -> list[str]:
+    """The expert and the random policy on TidyHouse Pick and Place, per object, and their HTML leaderboard."""
+    import shutil
+
+    from .eval.evaluate import RESULTS_FILE, EvalConfig, evaluate, format_table
+    from .eval.leaderboard import build_leaderboard
+
+    results = []
+    for policy in ("expert", "random"):
+        folder = out / "eval" / policy
+        if folder.exists():  # the demo always shows a fresh evaluation
+            shutil.rmtree(folder)
+        print(f"evaluating {policy} on TidyHouse pick, place ({per_object} episode(s) per object) ...", flush=True)
+        result = evaluate(EvalConfig(policy=policy, setting="TidyHouse", episodes_per_object=per_object), folder,
+                          command=f"aerobench eval --policy {policy} --setting TidyHouse --episodes-per-object {per_object}")
+        print(format_table(result))
+        results.append(folder / RESULTS_FILE)
+    build_leaderboard(results, out / "leaderboard")
+    print(f"HTML leaderboard: {(out / 'leaderboard' / 'index.html').resolve()}")
+    return ["eval/", "leaderboard/"]
 
 
 def _demo_dataset(root: Path, episodes: int) -> str:
@@ -388,6 +412,39 @@ def _run_eval(args) -> int:
     return 0
 
 
+def _add_summarize(sub) -> None:
+    p = sub.add_parser("summarize", help="a results.json from episode records (of aerobench eval or generate)")
+    p.add_argument("records", help="a records.jsonl, or a folder holding one (an eval folder, or a dataset's .aerobench/)")
+    p.add_argument("--label", default=None, help="leaderboard row name (default: the policy name)")
+    p.add_argument("--out", required=True, help="results file to write")
+    p.set_defaults(func=_run_summarize)
+
+
+def _run_summarize(args) -> int:
+    from .eval.evaluate import format_table
+    from .eval.results import summarize, write_results
+    from .rollout.records import RECORDS_FILE, read_records
+
+    path = Path(args.records)
+    for candidate in (path, path / RECORDS_FILE, path / ".aerobench" / RECORDS_FILE):
+        if candidate.is_file():
+            path = candidate
+            break
+    else:
+        raise UserError(f"no records.jsonl at {args.records} (aerobench eval and generate write one)")
+    run_files = [path.parent / "run.json", path.parent / "generation.json"]
+    source = next((json.loads(f.read_text()) for f in run_files if f.is_file()), {})
+    try:
+        results = summarize(read_records(path), {**source, "records": str(path), "command": "aerobench " + " ".join(sys.argv[1:])},
+                            label=args.label)
+    except (ValueError, KeyError) as e:
+        raise UserError(f"cannot summarize {path}: {e}") from None
+    write_results(args.out, results)
+    print(format_table(results))
+    print(f"wrote {args.out}")
+    return 0
+
+
 def _add_leaderboard(sub) -> None:
     p = sub.add_parser("leaderboard", help="render Markdown, LaTeX and HTML leaderboards from results files")
     p.add_argument("results", nargs="+", help="results.json files written by aerobench eval")
@@ -416,6 +473,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_generate(sub)
     _add_dataset(sub)
     _add_eval(sub)
+    _add_summarize(sub)
     _add_leaderboard(sub)
     return parser
 

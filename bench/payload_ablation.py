@@ -30,6 +30,7 @@ from aerobench.envs.checks import FailureCause  # noqa: E402
 from aerobench.envs.objects import OBJECTS  # noqa: E402
 from aerobench.envs.platforms import CONTROL_HZ  # noqa: E402
 from aerobench.policies import make_policy  # noqa: E402
+from aerobench.rollout.runner import episode_limit  # noqa: E402
 
 LIFT_OFF_M = 0.05  # spec: "the first time after the grasp at which the object has risen 5 cm"
 CONDITIONS = ("payload-aware", "nominal")
@@ -42,7 +43,7 @@ def run_episode(env, seed: int, obj: str) -> dict:
     policy.reset(torch.arange(1))
     xi_z, tilt_rate, height, grasped, stage = [], [], [], [], []
     info = {}
-    for _ in range(env.spec.max_episode_steps):
+    for _ in range(episode_limit(env)):
         _, _, terminated, truncated, info = env.step(policy.act(None))
         state = base.agent.airframe_state()
         xi_z.append(float(base.agent.body_controller.memory.xi[0, 2]))

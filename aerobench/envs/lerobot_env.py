@@ -132,7 +132,7 @@ def make_lerobot_env(
     if episode_length:
         kwargs["max_episode_steps"] = episode_length
     env = gym.make(env_id, **kwargs)
-    return LeRobotAdapter(env, env.spec.max_episode_steps or episode_length or 1000)
+    return LeRobotAdapter(env, getattr(env, "_max_episode_steps", None) or episode_length or 1000)
 
 
 @EnvConfig.register_subclass("aerobench")

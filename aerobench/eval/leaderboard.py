@@ -58,8 +58,9 @@ class SettingTable:
     def is_best(self, skill: str, obj: str, cell: dict) -> bool:
         return (skill, obj) in self.best and abs(cell["success_rate"] - self.best[(skill, obj)]) < 1e-12
 
-    def best_mean(self) -> float:
-        return max(r["mean_sr"] for r in self.results)
+    def is_best_mean(self, result: dict) -> bool:
+        best = max(r["mean_sr"] for r in self.results)
+        return len(self.results) > 1 and best > 0 and result["mean_sr"] == best
 
 
 def load_all(paths: Sequence[str | Path]) -> dict[str, list[dict]]:
@@ -95,7 +96,7 @@ def render_markdown(table: SettingTable) -> str:
             mean = ""
             if i == 0:
                 mean = _pct(result["mean_sr"])
-                mean = f"**{mean}**" if len(table.results) > 1 and result["mean_sr"] == table.best_mean() else mean
+                mean = f"**{mean}**" if table.is_best_mean(result) else mean
             lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
     lines += ["", "| Row | n per cell | Results file | Command |", "|---|---|---|---|"]
     for result in table.results:
@@ -136,8 +137,7 @@ def render_latex(table: SettingTable) -> str:
             mean = ""
             if last:
                 value = _pct(result["mean_sr"])
-                best = len(table.results) > 1 and result["mean_sr"] == table.best_mean()
-                mean = rf"\multirow{{-{len(skills)}}}{{*}}{{" + (rf"\textbf{{{value}}}" if best else value) + "}"
+                mean = rf"\multirow{{-{len(skills)}}}{{*}}{{" + (rf"\textbf{{{value}}}" if table.is_best_mean(result) else value) + "}"
             lines.append(f"{name} & {skill.capitalize()} & " + " & ".join(cells) + f" & {mean} \\\\")
         lines.append(r"\hline")
     lines += [r"\end{tabular}%", "}", r"\end{table*}"]
@@ -167,7 +167,9 @@ td.best {{ font-weight: bold; }}
 best per column in bold. Click a column header to sort.</p>
 {body}
 <script>
-document.querySelectorAll("table.sortable").forEach(function (table) {{
+var tables = document.querySelectorAll("table.sortable");
+document.body.setAttribute("data-tables-ready", String(tables.length));
+tables.forEach(function (table) {{
   table.querySelectorAll("th").forEach(function (th, col) {{
     th.addEventListener("click", function () {{
       var rows = Array.from(table.tBodies[0].rows);

@@ -104,6 +104,14 @@ def plan_episodes(spec: RolloutSpec) -> list[EpisodePlan]:
     return plans
 
 
+def episode_limit(env: gym.Env) -> int:
+    """The env's time limit in control steps (ManiSkill's TimeLimitWrapper holds it; gym's spec may not)."""
+    limit = getattr(env, "_max_episode_steps", None) or (env.spec.max_episode_steps if env.spec else None)
+    if not limit:
+        raise ValueError(f"{env.spec.id if env.spec else env} has no time limit; pass max_episode_steps")
+    return int(limit)
+
+
 def _uses_object(spec: RolloutSpec) -> bool:
     return any(s not in ("nav", "open", "close") for s in spec.skills)
 
@@ -196,7 +204,7 @@ class RolloutRunner:
         obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options=options)
         policy = make_policy(self.spec.policy, base, checkpoint=self.spec.checkpoint)
         policy.reset(torch.arange(n, device=base.device))
-        max_steps = env.spec.max_episode_steps or 1000
+        max_steps = episode_limit(env)
         evaluators = [ev.skill for ev in base.evaluators]
         active = torch.ones(n, dtype=torch.bool)
         active[len(plans):] = False

@@ -60,3 +60,24 @@ def test_refuses_other_versions_and_duplicates(spec_results, tmp_path):
     not_results.write_text("{}")
     with pytest.raises(ValueError, match="not an aerobench results file"):
         build_leaderboard([not_results], tmp_path / "z")
+
+
+def _chromium() -> str | None:
+    import shutil
+
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (make test installs Debian's chromium package)")
+def test_html_renders_in_headless_chromium(spec_results, tmp_path):
+    import subprocess
+
+    build_leaderboard(spec_results, tmp_path)
+    page = (tmp_path / "index.html").resolve()
+    r = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--dump-dom", page.as_uri()],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    dom = r.stdout
+    assert 'data-tables-ready="1"' in dom  # the page's script ran over the one setting's table
+    assert dom.count('<td class="mean"') == 8 and "44.6</td>" in dom and '<td class="best"' in dom
+    assert dom.count('class="bar"') == 4  # one failure-mode bar per policy

@@ -1,0 +1,116 @@
+"""LeRobot policies (ACT, Diffusion Policy, pi0, pi0.5) from a checkpoint folder, behind the batched interface.
+
+The checkpoint's own processors normalize inputs and unnormalize actions; `select_action` serves action chunks
+from the policy's queue. Observations are mapped to the checkpoint's input features by name, the same keys the
+dataset export writes: `observation.state`, `observation.images.<camera>` (RGB in [0, 1], CHW) and
+`observation.depth.<camera>` (the export's packed 16-bit millimetre image), plus the language `task`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..export.depth import encode_depth_mm
+from .registry import register_policy
+
+REQUIRED_FILES = ("config.json", "model.safetensors")
+PROCESSOR_FILES = ("policy_preprocessor.json", "policy_postprocessor.json")
+LEROBOT_TYPES = {"act": "act", "diffusion": "diffusion", "pi0": "pi0", "pi05": "pi05"}
+
+
+def resolve_checkpoint(checkpoint: str | None, policy: str) -> Path:
+    """The `pretrained_model` folder of a LeRobot checkpoint: given it, a `checkpoints/<step>` folder, or a
+    `lerobot-train` output folder (its `checkpoints/last`). Missing pieces are one-line errors."""
+    if not checkpoint:
+        raise ValueError(f"--policy {policy} needs --checkpoint DIR (a lerobot-train output folder or its "
+                         f"checkpoints/<step>/pretrained_model holding {', '.join(REQUIRED_FILES + PROCESSOR_FILES)})")
+    path = Path(checkpoint).expanduser()
+    for candidate in (path, path / "pretrained_model", path / "checkpoints" / "last" / "pretrained_model"):
+        if all((candidate / f).is_file() for f in REQUIRED_FILES):
+            missing = [f for f in PROCESSOR_FILES if not (candidate / f).is_file()]
+            if missing:
+                raise ValueError(f"checkpoint {candidate} lacks {', '.join(missing)} (saved by lerobot-train with the "
+                                 f"policy's processors); re-save it with LeRobot >= 0.4")
+            return candidate
+    raise ValueError(f"no LeRobot checkpoint at {path}: a checkpoint folder holds {', '.join(REQUIRED_FILES + PROCESSOR_FILES)} "
+                     f"(lerobot-train writes them to OUTPUT/checkpoints/<step>/pretrained_model)")
+
+
+def _load_config(path: Path, policy: str):
+    from lerobot.configs.policies import PreTrainedConfig
+
+    config = PreTrainedConfig.from_pretrained(path, local_files_only=True)
+    if config.type != LEROBOT_TYPES[policy]:
+        raise ValueError(f"checkpoint {path} holds a {config.type!r} policy, not {policy!r}; use --policy {config.type}")
+    return config
+
+
+class LeRobotPolicy:
+    """A LeRobot `PreTrainedPolicy` and its processors, driving a batch of aerobench envs."""
+
+    kind = "act"
+
+    def __init__(self, env, checkpoint: str | None = None, **_):
+        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+        self.name = self.kind
+        path = resolve_checkpoint(checkpoint, self.kind)
+        config = _load_config(path, self.kind)
+        self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        config.device = str(self.device)
+        self.env = env
+        self.model = get_policy_class(config.type).from_pretrained(path, config=config, local_files_only=True)
+        self.model.to(self.device).eval()
+        self.preprocess, self.postprocess = make_pre_post_processors(
+            config, pretrained_path=str(path), preprocessor_overrides={"device_processor": {"device": str(self.device)}}
+        )
+        self.inputs = dict(config.input_features)
+        action_dim = config.output_features["action"].shape[0]
+        if action_dim != env.platform.action_dim:
+            raise ValueError(f"checkpoint {path} acts with {action_dim} values; the {env.platform.name} platform takes "
+                             f"{env.platform.action_dim} (train on a dataset of the same platform)")
+
+    @classmethod
+    def needs_images(cls, checkpoint: str | None) -> bool:
+        config = _load_config(resolve_checkpoint(checkpoint, cls.kind), cls.kind)
+        return any(k.startswith(("observation.images.", "observation.depth.")) for k in config.input_features)
+
+    def reset(self, env_idx: torch.Tensor) -> None:
+        self.model.reset()  # clears the action-chunk queue (the runner starts a batch's episodes together)
+
+    def batch(self, obs) -> dict:
+        """The checkpoint's input features from an aerobench observation `(N, ...)`."""
+        n = self.env.num_envs
+        out: dict = {"task": [self.env.get_instruction(i) for i in range(n)]}
+        for key in self.inputs:
+            if key == "observation.state":
+                out[key] = obs["agent"]["state"].float()
+            elif key.startswith("observation.images."):
+                rgb = obs["sensor_data"][key.removeprefix("observation.images.")]["rgb"]
+                out[key] = rgb.permute(0, 3, 1, 2).float() / 255.0
+            elif key.startswith("observation.depth."):
+                depth = obs["sensor_data"][key.removeprefix("observation.depth.")]["depth"][..., 0]
+                depth = depth.cpu().numpy().clip(0, 65535).astype(np.uint16)
+                packed = np.stack([encode_depth_mm(d) for d in depth])
+                out[key] = torch.from_numpy(packed).permute(0, 3, 1, 2).float() / 255.0
+            else:
+                raise ValueError(f"checkpoint input feature {key!r} is not an aerobench observation")
+        return out
+
+    @torch.no_grad()
+    def act(self, obs) -> torch.Tensor:
+        batch = self.preprocess(self.batch(obs))
+        action = self.postprocess(self.model.select_action(batch))
+        return action.to(self.env.device).float().clamp(-1.0, 1.0)
+
+
+def _register(kind: str) -> None:
+    cls = type(f"LeRobot_{kind}", (LeRobotPolicy,), {"kind": kind, "__doc__": f"LeRobot {kind} from a checkpoint."})
+    register_policy(kind)(cls)
+
+
+for _kind in LEROBOT_TYPES:
+    _register(_kind)

@@ -1,0 +1,89 @@
+"""`aerobench eval`: records + results on a tiny grid, resume without loss or duplication, bad input, summarize."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from aerobench.eval.evaluate import EvalConfig, evaluate
+from aerobench.eval.results import RESULTS_VERSION, load_results
+from aerobench.rollout.records import RecordSink, read_records
+
+CLI = [sys.executable, "-m", "aerobench.cli"]
+ENV = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
+TINY = dict(policy="random", setting="TidyHouse", skills=("pick", "place"), objects=("sugar_box", "bowl"), episodes_per_object=2)
+
+
+def _cli(*args: str, timeout: int = 600) -> subprocess.CompletedProcess:
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout, env=ENV)
+
+
+@pytest.fixture(scope="module")
+def tiny_eval(tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval")
+    return out, evaluate(EvalConfig(**TINY), out, command="test")
+
+
+def test_results_cover_the_grid(tiny_eval):
+    out, results = tiny_eval
+    assert results["version"] == RESULTS_VERSION and results["policy"] == "random"
+    cells = {(c["skill"], c["object"]): c for c in results["cells"]}
+    assert set(cells) == {(s, o) for s in ("pick", "place") for o in ("sugar_box", "bowl")}
+    assert all(c["n"] + c["init_failures"] == 2 for c in cells.values())
+    assert sum(sum(c["modes"].values()) for c in cells.values()) == sum(c["n"] for c in cells.values())
+    # a random policy does not pick or place: every executed episode ends in a named failure mode
+    assert results["mean_sr"] == 0.0 and all(not m.startswith("Successful") for c in cells.values() for m in c["modes"])
+    assert load_results(out / "results.json")["cells"] == results["cells"]
+    assert results["provenance"]["command"] == "test" and results["provenance"]["episodes_per_object"] == 2
+    rows = read_records(out / "records.jsonl")
+    assert sorted(r["episode_index"] for r in rows) == list(range(8))
+
+
+def test_resume_after_a_torn_write_loses_and_duplicates_nothing(tiny_eval, tmp_path):
+    out, results = tiny_eval
+    rows = (out / "records.jsonl").read_text().splitlines()
+    resumed = tmp_path / "resumed"
+    resumed.mkdir()
+    (resumed / "run.json").write_text((out / "run.json").read_text())
+    # the process died after five episodes, in the middle of writing the sixth
+    (resumed / "records.jsonl").write_text("\n".join(rows[:5]) + "\n" + rows[5][: len(rows[5]) // 2])
+    again = evaluate(EvalConfig(**TINY), resumed, command="test")
+    new_rows = read_records(resumed / "records.jsonl")
+    assert [r["episode_index"] for r in new_rows] == list(range(8))
+    assert [r["mode"] for r in new_rows] == [json.loads(r)["mode"] for r in rows]  # deterministic: same episodes
+    assert again["cells"] == results["cells"]
+
+
+def test_a_folder_holding_another_run_is_refused(tiny_eval):
+    out, _ = tiny_eval
+    with pytest.raises(ValueError, match="holds a different run"):
+        RecordSink(out, {"policy": "expert"})
+
+
+def test_cli_errors_are_one_line(tmp_path):
+    r = _cli("eval", "--policy", "nope", "--setting", "TidyHouse", "--out", str(tmp_path / "x"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+    assert "unknown policy 'nope'; valid policies:" in r.stderr and "expert" in r.stderr and "random" in r.stderr
+    assert not (tmp_path / "x").exists()
+    r = _cli("eval", "--policy", "random", "--setting", "Garage", "--out", str(tmp_path / "y"))
+    assert r.returncode == 2 and "unknown setting 'Garage'" in r.stderr and not (tmp_path / "y").exists()
+    bad = tmp_path / "old.json"
+    bad.write_text(json.dumps({"format": "aerobench-results", "version": 0}))
+    r = _cli("leaderboard", str(bad), "--out", str(tmp_path / "boards"))
+    assert r.returncode == 2 and "results version 0" in r.stderr and not (tmp_path / "boards").exists()
+
+
+def test_summarize_and_leaderboard_cli(tiny_eval, tmp_path):
+    out, results = tiny_eval
+    r = _cli("summarize", str(out), "--label", "random (tiny)", "--out", str(tmp_path / "r.json"))
+    assert r.returncode == 0, r.stderr
+    summary = load_results(tmp_path / "r.json")
+    assert summary["label"] == "random (tiny)" and summary["cells"] == results["cells"]
+    r = _cli("leaderboard", str(tmp_path / "r.json"), str(out / "results.json"), "--out", str(tmp_path / "boards"))
+    assert r.returncode == 0, r.stderr
+    md = (tmp_path / "boards" / "TidyHouse.md").read_text()
+    assert "| random (tiny) | Pick | 0.0 ± 0.0 | 0.0 ± 0.0 | 0.0 |" in md and "| random | Pick |" in md
+    assert Path(tmp_path / "boards" / "index.html").read_text().count("<tr>") == 1 + 4  # one setting: a header row and 2 policies x 2 skills
