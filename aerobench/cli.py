@@ -9,6 +9,7 @@ import argparse
 import json
 import math
 import os
+import shlex
 import sys
 from pathlib import Path
 
@@ -382,6 +383,8 @@ def _add_eval(sub) -> None:
     p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
     p.add_argument("--label", default=None, help="leaderboard row name (default: the policy name)")
     p.add_argument("--dataset-revision", default=None, help="the training dataset's revision, kept in the provenance")
+    p.add_argument("--max-steps", type=int, default=None,
+                   help="truncate episodes after N control steps (smoke tests; not comparable with full-length results)")
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
     p.set_defaults(func=_run_eval)
 
@@ -394,9 +397,11 @@ def _run_eval(args) -> int:
         policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
         episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
         seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
-        dataset_revision=args.dataset_revision,
+        dataset_revision=args.dataset_revision, max_steps=args.max_steps,
     )
     try:
+        if args.max_steps is not None and args.max_steps < 1:
+            raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
         policy_needs_images(args.policy, args.checkpoint)  # unknown names and bad checkpoints fail before any work
         spec = config.rollout_spec(record_cameras=False)
     except ValueError as e:
@@ -404,7 +409,7 @@ def _run_eval(args) -> int:
     bar = _progress_bar(spec)
     try:
         results = evaluate(config, args.out, on_episode=lambda ep, progress: bar(progress),
-                           command="aerobench " + " ".join(sys.argv[1:]))
+                           command="aerobench " + shlex.join(sys.argv[1:]))
     except ValueError as e:
         raise UserError(str(e)) from None
     print(format_table(results))
@@ -434,15 +439,32 @@ def _run_summarize(args) -> int:
         raise UserError(f"no records.jsonl at {args.records} (aerobench eval and generate write one)")
     run_files = [path.parent / "run.json", path.parent / "generation.json"]
     source = next((json.loads(f.read_text()) for f in run_files if f.is_file()), {})
+    command = "aerobench " + shlex.join(sys.argv[1:])
+    if (path.parent / "generation.json").is_file() and path.parent.name == ".aerobench":
+        # Records of a generated dataset: the table's provenance is the generate command, then this one.
+        command = f"{_generate_command(source, path.parent.parent)} && {command}"
     try:
-        results = summarize(read_records(path), {**source, "records": str(path), "command": "aerobench " + " ".join(sys.argv[1:])},
-                            label=args.label)
+        results = summarize(read_records(path), {**source, "records": str(path), "command": command}, label=args.label)
     except (ValueError, KeyError) as e:
         raise UserError(f"cannot summarize {path}: {e}") from None
     write_results(args.out, results)
     print(format_table(results))
     print(f"wrote {args.out}")
     return 0
+
+
+def _generate_command(spec: dict, out: Path) -> str:
+    """The `aerobench generate` command line that wrote a dataset, rebuilt from its generation.json."""
+    parts = ["aerobench generate", f"--setting {spec['setting']}", f"--skills {','.join(spec['skills'])}",
+             f"--episodes {spec['episodes']}", f"--seed {spec['seed']}", f"--keep {spec['keep']}",
+             f"--policy {spec['policy']}", f"--controller {spec['controller']}"]
+    if spec.get("objects"):
+        parts.append(f"--objects {','.join(spec['objects'])}")
+    if spec.get("platform"):
+        parts.append(f"--platform {spec['platform']}")
+    if not spec.get("record_cameras", True):
+        parts.append("--no-cameras")
+    return " ".join([*parts, f"--out {out}"])
 
 
 def _add_leaderboard(sub) -> None:

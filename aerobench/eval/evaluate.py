@@ -36,6 +36,7 @@ class EvalConfig:
     sim_backend: str = "physx_cpu"
     label: str | None = None  # the leaderboard row name (e.g. with the training budget)
     dataset_revision: str | None = None
+    max_steps: int | None = None  # truncate every episode after this many control steps (smoke tests)
 
     def rollout_spec(self, record_cameras: bool) -> RolloutSpec:
         setting = get_setting(self.setting)
@@ -47,6 +48,7 @@ class EvalConfig:
             setting=self.setting, skills=tuple(self.skills), objects=tuple(self.objects) if self.objects else None,
             episodes=self.episodes_per_object * n_objects * len(self.skills), num_envs=self.num_envs, seed=self.seed,
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
+            max_steps=self.max_steps,
         )
 
 
@@ -76,7 +78,7 @@ def evaluate(
         "policy": config.policy, "checkpoint": str(Path(config.checkpoint).resolve()) if config.checkpoint else None,
         "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(config.skills),
         "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
-        "sim_backend": config.sim_backend, "num_envs": config.num_envs, "records": str(sink.path.name),
+        "sim_backend": config.sim_backend, "num_envs": config.num_envs, "max_steps": config.max_steps, "records": str(sink.path.name),
         "command": command,
     }
     results = summarize(read_records(sink.path), provenance, label=config.label)

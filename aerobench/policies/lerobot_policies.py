@@ -40,6 +40,7 @@ def resolve_checkpoint(checkpoint: str | None, policy: str) -> Path:
 
 
 def _load_config(path: Path, policy: str):
+    import lerobot.policies  # noqa: F401  (importing it registers the policy config types)
     from lerobot.configs.policies import PreTrainedConfig
 
     config = PreTrainedConfig.from_pretrained(path, local_files_only=True)

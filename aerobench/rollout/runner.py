@@ -81,6 +81,7 @@ class RolloutSpec:
             "objects": list(self.objects) if self.objects else None, "seed": self.seed, "policy": self.policy,
             "checkpoint": self.checkpoint, "record_cameras": self.record_cameras, "platform": self.platform,
             "controller": self.controller, "shard": list(self.shard),
+            **({"max_steps": self.max_steps} if self.max_steps else {}),  # only when set: older runs stay resumable
         }
 
 

@@ -1,5 +1,6 @@
 import json
 import re
+from pathlib import Path
 
 import pytest
 
@@ -81,3 +82,14 @@ def test_html_renders_in_headless_chromium(spec_results, tmp_path):
     assert 'data-tables-ready="1"' in dom  # the page's script ran over the one setting's table
     assert dom.count('<td class="mean"') == 8 and "44.6</td>" in dom and '<td class="best"' in dom
     assert dom.count('class="bar"') == 4  # one failure-mode bar per policy
+
+
+def test_repository_leaderboards_are_generated_from_their_results(tmp_path):
+    """leaderboards/ must be exactly what `aerobench leaderboard leaderboards/results/*.json` renders: never typed."""
+    root = Path(__file__).resolve().parents[2] / "leaderboards"
+    results = sorted((root / "results").glob("*.json"))
+    settings = {json.loads(p.read_text())["setting"] for p in results}
+    assert settings >= {"TidyHouse", "PrepareGroceries", "PackageDelivery", "LongHorizonRearrangement"}
+    build_leaderboard(results, tmp_path)
+    for rendered in tmp_path.iterdir():
+        assert rendered.read_text() == (root / rendered.name).read_text(), f"leaderboards/{rendered.name} is stale"
