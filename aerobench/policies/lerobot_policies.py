@@ -8,6 +8,7 @@ dataset export writes: `observation.state`, `observation.images.<camera>` (RGB i
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -49,25 +50,33 @@ def _load_config(path: Path, policy: str):
     return config
 
 
+@functools.lru_cache(maxsize=2)
+def _load_policy(path: Path, kind: str):
+    """Config, model and processors of a checkpoint, loaded once per process (the runner builds a policy per batch)."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    config = _load_config(path, kind)
+    device = "cuda" if torch.cuda.is_available() else "cpu"
+    config.device = device
+    model = get_policy_class(config.type).from_pretrained(path, config=config, local_files_only=True)
+    model.to(device).eval()
+    preprocess, postprocess = make_pre_post_processors(
+        config, pretrained_path=str(path), preprocessor_overrides={"device_processor": {"device": device}}
+    )
+    return config, model, preprocess, postprocess
+
+
 class LeRobotPolicy:
     """A LeRobot `PreTrainedPolicy` and its processors, driving a batch of aerobench envs."""
 
     kind = "act"
 
     def __init__(self, env, checkpoint: str | None = None, **_):
-        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
-
         self.name = self.kind
         path = resolve_checkpoint(checkpoint, self.kind)
-        config = _load_config(path, self.kind)
-        self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
-        config.device = str(self.device)
         self.env = env
-        self.model = get_policy_class(config.type).from_pretrained(path, config=config, local_files_only=True)
-        self.model.to(self.device).eval()
-        self.preprocess, self.postprocess = make_pre_post_processors(
-            config, pretrained_path=str(path), preprocessor_overrides={"device_processor": {"device": str(self.device)}}
-        )
+        config, self.model, self.preprocess, self.postprocess = _load_policy(path, self.kind)
+        self.device = torch.device(config.device)
         self.inputs = dict(config.input_features)
         action_dim = config.output_features["action"].shape[0]
         if action_dim != env.platform.action_dim:
