@@ -1,5 +1,5 @@
-"""ACT end to end on CPU, offline: an exported aerobench dataset -> `lerobot-train` with the repo's config, unmodified
--> a checkpoint -> `aerobench eval --policy act --checkpoint DIR` -> results with the checkpoint's provenance."""
+"""ACT and Diffusion Policy end to end on CPU, offline: an exported aerobench dataset -> `lerobot-train` with the repo's
+config, unmodified -> a checkpoint -> `aerobench eval --policy P --checkpoint DIR` -> results with its provenance."""
 
 import json
 import os
@@ -26,7 +26,7 @@ def _run(cmd: list[str], cwd: Path) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def camera_dataset(tmp_path_factory) -> Path:
     """Two short random-policy Pick episodes with the three RGB-D cameras, exported as a LeRobotDataset."""
-    root = tmp_path_factory.mktemp("act") / "ds"
+    root = tmp_path_factory.mktemp("lerobot") / "ds"
     spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=2, objects=("master_chef_can",), policy="random",
                        record_cameras=True, max_steps=12)
     sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"})
@@ -35,27 +35,29 @@ def camera_dataset(tmp_path_factory) -> Path:
     return root
 
 
-def test_act_trains_with_the_repo_config_and_evaluates(camera_dataset, tmp_path):
+@pytest.mark.parametrize("policy", ["act", "diffusion"])
+def test_policy_trains_with_the_repo_config_and_evaluates(policy, camera_dataset, tmp_path):
     train_dir = tmp_path / "train"
-    _run([str(BIN / "lerobot-train"), "--config_path", str(REPO / "configs" / "act_tidy_house.json"),
+    label = f"{policy} (2 steps, test)"
+    _run([str(BIN / "lerobot-train"), "--config_path", str(REPO / "configs" / f"{policy}_tidy_house.json"),
           "--dataset.root", str(camera_dataset), "--steps", "2", "--save_freq", "2", "--batch_size", "2",
           "--num_workers", "0", "--output_dir", str(train_dir)], cwd=tmp_path)
     assert (train_dir / "checkpoints" / "last" / "pretrained_model" / "model.safetensors").is_file()
 
     out = tmp_path / "eval"
-    proc = _run([str(BIN / "aerobench"), "eval", "--policy", "act", "--checkpoint", str(train_dir),
+    proc = _run([str(BIN / "aerobench"), "eval", "--policy", policy, "--checkpoint", str(train_dir),
                  "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can",
-                 "--episodes-per-object", "2", "--max-steps", "8", "--label", "act (2 steps, test)", "--out", str(out)],
+                 "--episodes-per-object", "2", "--max-steps", "8", "--label", label, "--out", str(out)],
                 cwd=tmp_path)
-    assert "act (2 steps, test)" in proc.stdout
+    assert label in proc.stdout
     results = json.loads((out / "results.json").read_text())
-    assert results["policy"] == "act" and results["label"] == "act (2 steps, test)"
+    assert results["policy"] == policy and results["label"] == label
     assert results["provenance"]["checkpoint"] == str(train_dir.resolve())
     assert results["provenance"]["max_steps"] == 8
     (cell,) = results["cells"]
     assert (cell["skill"], cell["object"], cell["n"]) == ("pick", "master_chef_can", 2)
     records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
     assert [r["episode_index"] for r in records] == [0, 1]
-    # an untrained ACT cannot pick in 8 steps: every episode ends truncated or failed, and is counted
+    # an untrained policy cannot pick in 8 steps: every episode ends truncated or failed, and is counted
     assert sum(cell["outcomes"].values()) == 2 and cell["successes"] == 0
     assert all(r["steps"] <= 8 for r in records)
