@@ -375,6 +375,9 @@ def _add_eval(sub) -> None:
     p.add_argument("--checkpoint", default=None, help="checkpoint folder of a trained policy")
     p.add_argument("--setting", required=True, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
     p.add_argument("--skills", type=_csv, default=("pick", "place"), help="comma-separated skills, or one chain")
+    p.add_argument("--chain", type=_csv, default=None,
+                   help="chained protocol, e.g. pick,transport,place: the policy acts the skills, the expert transports "
+                        "(--checkpoint DIR, or pick=DIR,place=DIR per stage)")
     p.add_argument("--objects", type=_csv, default=None, help="comma-separated objects (default: all of the setting's)")
     p.add_argument("--episodes-per-object", type=int, default=50)
     p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only)")
@@ -391,18 +394,17 @@ def _add_eval(sub) -> None:
 
 def _run_eval(args) -> int:
     from .eval.evaluate import EvalConfig, evaluate, format_table
-    from .policies import policy_needs_images
 
     config = EvalConfig(
         policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
         episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
         seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
-        dataset_revision=args.dataset_revision, max_steps=args.max_steps,
+        dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain,
     )
     try:
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
-        policy_needs_images(args.policy, args.checkpoint)  # unknown names and bad checkpoints fail before any work
+        config.needs_images()  # unknown names and bad checkpoints fail before any work
         spec = config.rollout_spec(record_cameras=False)
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -486,6 +488,57 @@ def _run_leaderboard(args) -> int:
     return 0
 
 
+def _add_train(sub) -> None:
+    from .train.bc import BCConfig
+    from .train.common import add_config_arguments
+    from .train.ppo import PPOConfig
+
+    p = sub.add_parser("train", help="train aerobench's own BC or PPO skill policies (checkpoints for --policy bc|ppo)")
+    algos = p.add_subparsers(dest="algorithm", required=True, parser_class=_Parser)
+    bc = algos.add_parser("bc", help="behaviour cloning on the successful episodes of an exported dataset")
+    add_config_arguments(bc, BCConfig, required=("dataset", "out"))
+    bc.set_defaults(func=_run_train, config_cls=BCConfig)
+    ppo = algos.add_parser("ppo", help="PPO on a skill env, from scratch or from a BC checkpoint (--init-bc DIR)")
+    add_config_arguments(ppo, PPOConfig, required=("setting", "skill", "out"))
+    ppo.set_defaults(func=_run_train, config_cls=PPOConfig)
+
+
+def _run_train(args) -> int:
+    from .train.common import config_from_args
+
+    try:
+        config = config_from_args(args.config_cls, args)
+        if args.algorithm == "bc":
+            from .train.bc import train_bc as train
+        else:
+            from .train.ppo import train_ppo as train
+        checkpoint = train(config)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"checkpoint: {checkpoint}  (aerobench eval --policy {args.algorithm} --checkpoint {checkpoint} ...)")
+    return 0
+
+
+def _add_pi_init(sub) -> None:
+    from .policies.pi_init import add_arguments
+
+    p = sub.add_parser("pi-init", help="a pi0/pi0.5 folder for lerobot-train --policy.path: local weights or a tiny random one")
+    add_arguments(p)
+    p.set_defaults(func=_run_pi_init)
+
+
+def _run_pi_init(args) -> int:
+    from .policies.pi_init import PiInitConfig, init_pi
+
+    try:
+        out = init_pi(PiInitConfig(policy=args.policy, dataset=args.dataset, out=args.out, variant=args.variant,
+                                   weights=args.weights, tokenizer=args.tokenizer, seed=args.seed))
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"wrote {out}  (lerobot-train --config_path configs/{args.policy}_tidy_house.json --policy.path {out} ...)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="aerobench", description="aerobench: aerial manipulation benchmark (see README.md)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -495,6 +548,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_generate(sub)
     _add_dataset(sub)
     _add_eval(sub)
+    _add_train(sub)
+    _add_pi_init(sub)
     _add_summarize(sub)
     _add_leaderboard(sub)
     return parser

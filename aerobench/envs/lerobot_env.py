@@ -180,5 +180,9 @@ class AerobenchEnvConfig(EnvConfig):
         def make_one():
             return make_lerobot_env(**kwargs)
 
-        vec = gym.vector.SyncVectorEnv([make_one for _ in range(n_envs)])
+        # As LeRobot's own envs: same-step autoreset (the rollout masks finished envs itself), and a process per env
+        # when asked for async envs (each is a separate SAPIEN scene; forkserver because SAPIEN does not survive fork)
+        extra = {"context": "forkserver"} if use_async_envs and n_envs > 1 else {}
+        vec_cls = gym.vector.AsyncVectorEnv if extra else gym.vector.SyncVectorEnv
+        vec = vec_cls([make_one for _ in range(n_envs)], autoreset_mode=gym.vector.AutoresetMode.SAME_STEP, **extra)
         return {self.type: {0: vec}}

@@ -14,6 +14,17 @@ orientation, and linear and angular velocities. Layout (`STATE_FIELDS`, in this 
 
 The arm platform appends its three arm joint positions and velocities (shoulder, elbow, wrist): 25 values.
 Cameras (`drone_front`, `drone_hand`, `drone_own`, RGB-D 128x128) and the language instruction come separately.
+
+The privileged task state (`TASK_STATE_FIELDS`, 13 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
+`observation.environment_state`) is what state-based skill policies (BC, PPO) see besides the proprio state, as
+ManiSkill's state observations do; camera-based policies need not use it. All positions in the env frame:
+
+| index | field | notes |
+| --- | --- | --- |
+| 0-2 | tool centre point position | m |
+| 3-5 | target object position | m; zeros in envs without an object (nav, open, close) |
+| 6-9 | target object orientation, quaternion wxyz | (1, 0, 0, 0) without an object |
+| 10-12 | the active skill's goal point | pick: the planned grasp point; place: the placement goal; nav: the target; open / close: the handle |
 """
 
 from __future__ import annotations
@@ -31,6 +42,8 @@ STATE_FIELDS = (
     ("finger_velocity", 2),
 )
 ARM_STATE_FIELDS = (("arm_position", 3), ("arm_velocity", 3))
+TASK_STATE_FIELDS = (("tcp_position", 3), ("object_position", 3), ("object_quaternion_wxyz", 4), ("goal_position", 3))
+TASK_STATE_DIM = sum(n for _, n in TASK_STATE_FIELDS)
 STATE_DIM = sum(n for _, n in STATE_FIELDS)
 assert STATE_DIM == 19
 
@@ -50,9 +63,14 @@ def proprio_state(
     return torch.cat(parts, dim=-1).float()
 
 
+def _names(fields) -> list[str]:
+    return [f"{field}.{i}" for field, n in fields for i in range(n)]
+
+
 def state_field_names(with_arm: bool) -> list[str]:
     """One name per state dimension, e.g. for LeRobot feature `names`."""
-    names = []
-    for field, n in STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()):
-        names += [f"{field}.{i}" for i in range(n)]
-    return names
+    return _names(STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()))
+
+
+def task_state_field_names() -> list[str]:
+    return _names(TASK_STATE_FIELDS)

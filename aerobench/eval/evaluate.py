@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..envs.tasks import get_setting
+from ..rollout.chained import resolve_chain, split_checkpoints
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records
 from ..rollout.runner import Progress, RolloutRunner, RolloutSpec
@@ -37,18 +38,27 @@ class EvalConfig:
     label: str | None = None  # the leaderboard row name (e.g. with the training budget)
     dataset_revision: str | None = None
     max_steps: int | None = None  # truncate every episode after this many control steps (smoke tests)
+    chain: tuple[str, ...] | None = None  # e.g. ("pick", "transport", "place"): the spec's chained protocol
+
+    def needs_images(self) -> bool:
+        """Whether the policy (every stage checkpoint of a chain) reads cameras; also validates name and checkpoint."""
+        from ..policies import policy_needs_images
+
+        checkpoints = split_checkpoints(self.checkpoint).values() if self.chain else [self.checkpoint]
+        return any(policy_needs_images(self.policy, c) for c in checkpoints)
 
     def rollout_spec(self, record_cameras: bool) -> RolloutSpec:
         setting = get_setting(self.setting)
-        uses_objects = any(s not in ("nav", "open", "close") for s in self.skills)
+        skills = (resolve_chain(self.setting, self.chain),) if self.chain else tuple(self.skills)
+        uses_objects = any(s not in ("nav", "open", "close") for s in skills)
         n_objects = len(self.objects or setting.objects) if uses_objects else 1
         if not (isinstance(self.episodes_per_object, int) and self.episodes_per_object > 0):
             raise ValueError(f"--episodes-per-object must be a positive integer, got {self.episodes_per_object}")
         return RolloutSpec(
-            setting=self.setting, skills=tuple(self.skills), objects=tuple(self.objects) if self.objects else None,
-            episodes=self.episodes_per_object * n_objects * len(self.skills), num_envs=self.num_envs, seed=self.seed,
+            setting=self.setting, skills=skills, objects=tuple(self.objects) if self.objects else None,
+            episodes=self.episodes_per_object * n_objects * len(skills), num_envs=self.num_envs, seed=self.seed,
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
-            max_steps=self.max_steps,
+            max_steps=self.max_steps, chained=bool(self.chain),
         )
 
 
@@ -59,10 +69,8 @@ def evaluate(
     command: str | None = None,
 ) -> dict:
     """Run (or continue) the evaluation into `out/records.jsonl` and write `out/results.json`; returns the results."""
-    from ..policies import policy_needs_images
-
     out = Path(out)
-    spec = config.rollout_spec(record_cameras=policy_needs_images(config.policy, config.checkpoint) or config.video > 0)
+    spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0)
     run_spec = {**spec.as_dict(), "episodes_per_object": config.episodes_per_object}
     sink = RecordSink(out, run_spec)
     videos = out / "videos"
@@ -75,8 +83,9 @@ def evaluate(
 
     RolloutRunner(spec, sink, on_episode=after).run()
     provenance = {
-        "policy": config.policy, "checkpoint": str(Path(config.checkpoint).resolve()) if config.checkpoint else None,
-        "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(config.skills),
+        "policy": config.policy, "checkpoint": _resolved(config.checkpoint),
+        "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(spec.skills),
+        "chain": list(config.chain) if config.chain else None,
         "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
         "sim_backend": config.sim_backend, "num_envs": config.num_envs, "max_steps": config.max_steps, "records": str(sink.path.name),
         "command": command,
@@ -86,6 +95,16 @@ def evaluate(
         results["videos"] = sorted(f"videos/{p.name}" for p in videos.glob("*.mp4"))
     write_results(out / RESULTS_FILE, results)
     return results
+
+
+def _resolved(checkpoint: str | None) -> str | None:
+    """The checkpoint as an absolute path (each path of a per-skill `pick=A,place=B` mapping)."""
+    if not checkpoint:
+        return None
+    paths = split_checkpoints(checkpoint)
+    if "*" in paths:
+        return str(Path(checkpoint).resolve())
+    return ",".join(f"{skill}={Path(p).resolve()}" for skill, p in paths.items())
 
 
 def write_episode_video(episode: EpisodeData, path: Path, fps: int = 20) -> None:

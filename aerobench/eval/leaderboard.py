@@ -98,12 +98,37 @@ def render_markdown(table: SettingTable) -> str:
                 mean = _pct(result["mean_sr"])
                 mean = f"**{mean}**" if table.is_best_mean(result) else mean
             lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
+    lines += _chain_markdown(table)
     lines += ["", "| Row | n per cell | Results file | Command |", "|---|---|---|---|"]
     for result in table.results:
         ns = sorted({c["n"] for c in result["cells"]})
         command = result["provenance"].get("command") or "-"
         lines.append(f"| {result['label']} | {', '.join(map(str, ns))} | `{result['_source']}` | `{command}` |")
     return "\n".join(lines) + "\n"
+
+
+def chain_rows(table: SettingTable) -> list[tuple[str, str, list[str]]]:
+    """(policy label, chain, one "skill k/n (p ± se)" text per stage) for every result with chain stages."""
+    rows = []
+    for result in table.results:
+        for name, stages in sorted(result.get("chains", {}).items()):
+            texts = [f"{s['skill']} {s['successes']}/{s['reached']} ({_pct(s['conditional_success'])} ± {_pct(s['se'])})"
+                     for s in stages]
+            rows.append((result["label"], name, texts))
+    return rows
+
+
+def _chain_markdown(table: SettingTable) -> list[str]:
+    rows = chain_rows(table)
+    if not rows:
+        return []
+    width = max(len(texts) for _, _, texts in rows)
+    lines = ["", "Chained rollouts, per stage: episodes that succeeded / reached the stage (conditional success % ± SE), "
+             "so error propagation across skills is visible.", "",
+             "| Policy | Chain | " + " | ".join(f"Stage {k + 1}" for k in range(width)) + " |", "|" + "---|" * (width + 2)]
+    for label, name, texts in rows:
+        lines.append(f"| {label} | {name} | " + " | ".join(texts + [""] * (width - len(texts))) + " |")
+    return lines
 
 
 def render_latex(table: SettingTable) -> str:
@@ -213,6 +238,12 @@ def render_html(tables: Sequence[SettingTable], video_root: Path | None = None) 
                 row.append(f'<td class="mean" data-v="{result["mean_sr"]:.6f}">{_pct(result["mean_sr"])}</td>')
                 body.append("<tr>" + "".join(row) + "</tr>")
         body.append("</tbody></table>")
+        chains = chain_rows(table)
+        if chains:
+            body.append("<h3>Chained rollouts: per-stage conditional success</h3><table><tbody>")
+            body += [f"<tr><td>{e(label)}</td><td>{e(name)}</td>" + "".join(f"<td>{e(t)}</td>" for t in texts) + "</tr>"
+                     for label, name, texts in chains]
+            body.append("</tbody></table>")
         body.append("<h3>Outcome modes</h3>")
         for result in table.results:
             modes: dict[str, int] = {}

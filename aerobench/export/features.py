@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 
 import numpy as np
-from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
-from ..envs.observations import ARM_STATE_FIELDS, STATE_DIM, state_field_names
+from ..envs.observations import ARM_STATE_FIELDS, STATE_DIM, TASK_STATE_DIM, state_field_names, task_state_field_names
 from ..envs.platforms import CONTROL_HZ
 from ..envs.tasks import SKILLS
 from ..rollout.episode import CAMERAS, EVENT_FLAGS, EpisodeData
@@ -56,10 +56,11 @@ def robot_type(platform: str) -> str:
 
 
 def build_features(
-    *, with_arm: bool, cameras: Sequence[str] = CAMERAS, image_hw: tuple[int, int] = IMAGE_HW
+    *, with_arm: bool, cameras: Sequence[str] = CAMERAS, image_hw: tuple[int, int] = IMAGE_HW, task_state: bool = True
 ) -> dict[str, dict]:
-    """LeRobot `features` for `LeRobotDataset.create`: cameras (none for a state-only dataset), state, action,
-    annotations. RGB is "video"; depth is an "image" holding the packed 16-bit millimetres."""
+    """LeRobot `features` for `LeRobotDataset.create`: cameras (none for a state-only dataset), state, the
+    privileged task state (`observation.environment_state`), action, annotations. RGB is "video"; depth is an
+    "image" holding the packed 16-bit millimetres."""
     image_shape = (*image_hw, RGB_CHANNELS)
     features: dict[str, dict] = {}
     for camera in cameras:
@@ -68,6 +69,8 @@ def build_features(
         features[depth_key(camera)] = {"dtype": "image", "shape": image_shape, "names": IMAGE_NAMES}
     state_names = state_field_names(with_arm)
     features[OBS_STATE] = {"dtype": "float32", "shape": (len(state_names),), "names": state_names}
+    if task_state:
+        features[OBS_ENV_STATE] = {"dtype": "float32", "shape": (TASK_STATE_DIM,), "names": task_state_field_names()}
     names = action_names(with_arm)
     features[ACTION] = {"dtype": "float32", "shape": (len(names),), "names": names}
     features[ANNOTATION_SKILL] = {"dtype": "int64", "shape": (1,), "names": None}
@@ -100,7 +103,7 @@ def episode_features(episode: EpisodeData) -> dict[str, dict]:
         )
     cameras = _recorded_cameras(episode.frames)
     image_hw = tuple(episode.frames[f"rgb/{cameras[0]}"].shape[1:3]) if cameras else IMAGE_HW
-    return build_features(with_arm=with_arm, cameras=cameras, image_hw=image_hw)
+    return build_features(with_arm=with_arm, cameras=cameras, image_hw=image_hw, task_state="task_state" in episode.frames)
 
 
 def features_summary(features: dict[str, dict]) -> str:
@@ -156,6 +159,8 @@ def episode_frames(episode: EpisodeData, features: dict[str, dict]) -> Iterator[
             ANNOTATION_EVENTS: events[t],
             "task": episode.task,
         }
+        if OBS_ENV_STATE in features:
+            frame[OBS_ENV_STATE] = np.asarray(frames["task_state"][t], dtype=np.float32)
         for camera in cameras:
             frame[rgb_key(camera)] = np.asarray(frames[f"rgb/{camera}"][t], dtype=np.uint8)
             frame[depth_key(camera)] = encode_depth_mm(np.asarray(frames[f"depth/{camera}"][t]))

@@ -261,7 +261,8 @@ class DatasetSink:
         index = episode.record.episode_index
         if index in self._done or any(e.record.episode_index == index for e in self._buffer):
             return
-        self._check_shape(episode)
+        if episode.num_frames:  # an initialization failure has no frames: only its record is kept
+            self._check_shape(episode)
         self._buffer.append(episode)
         if len(self._buffer) >= self.part_size:
             self.flush()

@@ -1,5 +1,7 @@
 """LeRobot policies (ACT, Diffusion Policy, pi0, pi0.5) from a checkpoint folder, behind the batched interface.
 
+`--policy pi0` / `--policy pi05` also take checkpoints of the tiny variants (`pi0_tiny`, `pi05_tiny`: pi_tiny/).
+
 The checkpoint's own processors normalize inputs and unnormalize actions; `select_action` serves action chunks
 from the policy's queue. Observations are mapped to the checkpoint's input features by name, the same keys the
 dataset export writes: `observation.state`, `observation.images.<camera>` (RGB in [0, 1], CHW) and
@@ -9,6 +11,7 @@ dataset export writes: `observation.state`, `observation.images.<camera>` (RGB i
 from __future__ import annotations
 
 import functools
+import json
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +22,8 @@ from .registry import register_policy
 
 REQUIRED_FILES = ("config.json", "model.safetensors")
 PROCESSOR_FILES = ("policy_preprocessor.json", "policy_postprocessor.json")
-LEROBOT_TYPES = {"act": "act", "diffusion": "diffusion", "pi0": "pi0", "pi05": "pi05"}
+# aerobench policy name -> the LeRobot config types its checkpoints may hold (the tiny pi variants: pi_tiny/)
+LEROBOT_TYPES = {"act": ("act",), "diffusion": ("diffusion",), "pi0": ("pi0", "pi0_tiny"), "pi05": ("pi05", "pi05_tiny")}
 
 
 def resolve_checkpoint(checkpoint: str | None, policy: str) -> Path:
@@ -44,25 +48,50 @@ def _load_config(path: Path, policy: str):
     import lerobot.policies  # noqa: F401  (importing it registers the policy config types)
     from lerobot.configs.policies import PreTrainedConfig
 
+    from . import pi_tiny  # noqa: F401  (registers pi0_tiny and pi05_tiny)
+
     config = PreTrainedConfig.from_pretrained(path, local_files_only=True)
-    if config.type != LEROBOT_TYPES[policy]:
-        raise ValueError(f"checkpoint {path} holds a {config.type!r} policy, not {policy!r}; use --policy {config.type}")
+    if config.type not in LEROBOT_TYPES[policy]:
+        name = next((k for k, types in LEROBOT_TYPES.items() if config.type in types), config.type)
+        raise ValueError(f"checkpoint {path} holds a {config.type!r} policy, not {policy!r}; use --policy {name}")
     return config
+
+
+def _tokenizer_name(path: Path) -> str | None:
+    """The tokenizer a checkpoint's preprocessor loads (pi0 / pi0.5), or None."""
+    steps = json.loads((path / PROCESSOR_FILES[0]).read_text()).get("steps", [])
+    return next((s.get("config", {}).get("tokenizer_name") for s in steps if s.get("registry_name") == "tokenizer_processor"), None)
+
+
+def _make_processors(config, path: Path, device: str):
+    """The checkpoint's processors; a tokenizer that cannot load offline is a one-line error saying what to do."""
+    from lerobot.policies.factory import make_pre_post_processors
+
+    try:
+        return make_pre_post_processors(
+            config, pretrained_path=str(path), preprocessor_overrides={"device_processor": {"device": device}}
+        )
+    except (OSError, ValueError) as e:
+        name = _tokenizer_name(path)
+        if not name or Path(name).is_dir():
+            raise
+        raise ValueError(f"checkpoint {path} tokenizes with {name!r}, which is not a local folder and cannot load "
+                         f"offline: put the tokenizer in a folder (for pi0/pi0.5 the PaliGemma tokenizer, `hf download "
+                         f"google/paligemma-3b-pt-224 --include 'tokenizer*' --local-dir DIR`) and set \"tokenizer_name\" "
+                         f"in {path / PROCESSOR_FILES[0]} to DIR, or start from `aerobench pi-init`") from e
 
 
 @functools.lru_cache(maxsize=2)
 def _load_policy(path: Path, kind: str):
     """Config, model and processors of a checkpoint, loaded once per process (the runner builds a policy per batch)."""
-    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+    from lerobot.policies.factory import get_policy_class
 
     config = _load_config(path, kind)
     device = "cuda" if torch.cuda.is_available() else "cpu"
     config.device = device
+    preprocess, postprocess = _make_processors(config, path, device)  # before the model: a bad tokenizer fails fast
     model = get_policy_class(config.type).from_pretrained(path, config=config, local_files_only=True)
     model.to(device).eval()
-    preprocess, postprocess = make_pre_post_processors(
-        config, pretrained_path=str(path), preprocessor_overrides={"device_processor": {"device": device}}
-    )
     return config, model, preprocess, postprocess
 
 
@@ -98,6 +127,8 @@ class LeRobotPolicy:
         for key in self.inputs:
             if key == "observation.state":
                 out[key] = obs["agent"]["state"].float()
+            elif key == "observation.environment_state":  # the privileged task state (envs.observations)
+                out[key] = self.env.task_state()
             elif key.startswith("observation.images."):
                 rgb = obs["sensor_data"][key.removeprefix("observation.images.")]["rgb"]
                 out[key] = rgb.permute(0, 3, 1, 2).float() / 255.0

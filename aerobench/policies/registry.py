@@ -30,7 +30,7 @@ def register_policy(name: str):
 
 def make_policy(name: str, env, checkpoint: str | None = None, **kwargs) -> Policy:
     """Build policy `name` for `env` (the unwrapped aerobench env); unknown names list the valid ones."""
-    from . import builtin, lerobot_policies  # noqa: F401  (register expert, random and the LeRobot policies)
+    from . import builtin, learned, lerobot_policies  # noqa: F401  (register expert, random, bc, ppo, LeRobot's)
 
     if name not in POLICIES:
         raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
@@ -39,7 +39,7 @@ def make_policy(name: str, env, checkpoint: str | None = None, **kwargs) -> Poli
 
 def policy_needs_images(name: str, checkpoint: str | None = None) -> bool:
     """Whether policy `name` reads camera images (the runner then renders the three RGB-D cameras)."""
-    from . import builtin, lerobot_policies  # noqa: F401
+    from . import builtin, learned, lerobot_policies  # noqa: F401
 
     if name not in POLICIES:
         raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")

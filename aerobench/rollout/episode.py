@@ -54,7 +54,7 @@ class EpisodeData:
 
     @property
     def num_frames(self) -> int:
-        return int(self.frames["action"].shape[0])
+        return int(self.frames["action"].shape[0]) if "action" in self.frames else 0  # 0: initialization failure
 
 
 class EpisodeSink(Protocol):

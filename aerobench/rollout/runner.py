@@ -22,6 +22,7 @@ from ..annotation import EpisodeRecord, categorize, cut_segments
 from ..envs.checker import SKILL_ENV_IDS
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
+from .chained import ChainedPolicy, ChainMonitor, mark_grasp_lost
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 
 SEED_STRIDE = 1_000_003  # episode seed = base seed * stride + episode index: distinct streams per base seed
@@ -45,6 +46,7 @@ class RolloutSpec:
     controller: str = "payload-aware"
     sim_backend: str = "physx_cpu"
     max_steps: int | None = None  # override the env's episode length
+    chained: bool = False  # a chain under the spec's chained evaluation protocol (`rollout.chained`)
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -68,6 +70,8 @@ class RolloutSpec:
             raise ValueError(f"--shard must be i/k with 0 <= i < k, got {i}/{k}")
         if self.num_envs < 1:
             raise ValueError(f"--num-envs must be at least 1, got {self.num_envs}")
+        if self.chained and not chains:
+            raise ValueError("the chained protocol runs a chain: give one chain, e.g. --chain pick,transport,place")
         if self.sim_backend == "physx_cpu" and self.num_envs != 1:
             raise ValueError("physx_cpu runs one env per process: use --shard i/k to run several processes")
 
@@ -82,6 +86,7 @@ class RolloutSpec:
             "checkpoint": self.checkpoint, "record_cameras": self.record_cameras, "platform": self.platform,
             "controller": self.controller, "shard": list(self.shard),
             **({"max_steps": self.max_steps} if self.max_steps else {}),  # only when set: older runs stay resumable
+            **({"chained": True} if self.chained else {}),
         }
 
 
@@ -203,7 +208,11 @@ class RolloutRunner:
         if objects[0] is not None:
             options["objects"] = objects
         obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options=options)
-        policy = make_policy(self.spec.policy, base, checkpoint=self.spec.checkpoint)
+        if self.spec.chained:
+            policy = ChainedPolicy(base, self.spec.policy, self.spec.checkpoint)
+            monitor = ChainMonitor([ev.skill for ev in base.evaluators], n)
+        else:
+            policy, monitor = make_policy(self.spec.policy, base, checkpoint=self.spec.checkpoint), None
         policy.reset(torch.arange(n, device=base.device))
         max_steps = episode_limit(env)
         evaluators = [ev.skill for ev in base.evaluators]
@@ -232,6 +241,12 @@ class RolloutRunner:
             steps += live.long()
             ended = (terminated.cpu() | truncated.cpu()) & live
             truncated_at |= truncated.cpu() & ~terminated.cpu() & live
+            if monitor is not None:  # the protocol's stage budgets and transport grasp-hold check
+                over_budget, grasp_lost = monitor.update(signals[-1])
+                grasp_lost &= live & ~ended
+                mark_grasp_lost(signals[-1], grasp_lost)
+                truncated_at |= over_budget & live & ~ended
+                ended |= (over_budget | grasp_lost) & live
             active &= ~ended
             for row in range(len(frames[-1]["_active"])):
                 frames[-1]["_active"][row] = bool(live[row])
@@ -248,6 +263,7 @@ class RolloutRunner:
         n = base.num_envs
         frame = {
             "state": obs["agent"]["state"].detach().cpu().numpy().astype(np.float32),
+            "task_state": base.task_state().detach().cpu().numpy().astype(np.float32),
             "action": action.detach().cpu().numpy().astype(np.float32),
             "phase": policy.phase().cpu().numpy() if hasattr(policy, "phase") else np.full(n, -1),
             "_active": [True] * n,

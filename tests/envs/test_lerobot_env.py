@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import torch
@@ -79,3 +80,21 @@ def test_lerobot_eval_runs_a_random_act_policy_offline(tmp_path):
     assert result.returncode == 0, result.stderr[-3000:]
     info = json.loads((tmp_path / "eval" / "eval_info.json").read_text())
     assert info["overall"]["n_episodes"] == 2
+
+
+def test_create_envs_gives_lerobots_vector_env_contract():
+    """Same-step autoreset as LeRobot's own envs, and `--env.episode_length` caps episodes (as lerobot-train's
+    evaluation reads `_max_episode_steps`)."""
+    vec = AerobenchEnvConfig(task="TidyHouse/pick", episode_length=2).create_envs(n_envs=1)["aerobench"][0]
+    try:
+        assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
+        assert vec.call("_max_episode_steps")[0] == 2
+        vec.reset(seed=0)
+        zeros = np.zeros((1, 5), dtype=np.float32)
+        _, _, terminated, truncated, _ = vec.step(zeros)
+        assert not (terminated[0] or truncated[0])
+        _, _, terminated, truncated, info = vec.step(zeros)
+        assert truncated[0] or terminated[0]
+        assert "final_obs" in info  # same-step autoreset hands back the last observation of the finished episode
+    finally:
+        vec.close()

@@ -70,6 +70,9 @@ def test_cli_errors_are_one_line(tmp_path):
     assert not (tmp_path / "x").exists()
     r = _cli("eval", "--policy", "random", "--setting", "Garage", "--out", str(tmp_path / "y"))
     assert r.returncode == 2 and "unknown setting 'Garage'" in r.stderr and not (tmp_path / "y").exists()
+    r = _cli("eval", "--policy", "random", "--setting", "TidyHouse", "--chain", "place,pick", "--out", str(tmp_path / "z"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and not (tmp_path / "z").exists()
+    assert "TidyHouse has no chain place,pick; valid --chain values: pick,transport,place" in r.stderr
     bad = tmp_path / "old.json"
     bad.write_text(json.dumps({"format": "aerobench-results", "version": 0}))
     r = _cli("leaderboard", str(bad), "--out", str(tmp_path / "boards"))

@@ -93,3 +93,24 @@ def test_repository_leaderboards_are_generated_from_their_results(tmp_path):
     build_leaderboard(results, tmp_path)
     for rendered in tmp_path.iterdir():
         assert rendered.read_text() == (root / rendered.name).read_text(), f"leaderboards/{rendered.name} is stale"
+
+
+def _chain_row(index: int, stages: list[str]) -> dict:
+    """A chain episode record reaching `len(stages)` stages with the given per-stage outcomes."""
+    skills = ("pick", "nav", "place")
+    segments = [{"stage": k, "skill": skills[k], "outcome": o, "mode": "Successful" if o == "S" else "Collision failure"}
+                for k, o in enumerate(stages)]
+    return {"episode_index": index, "setting": "TidyHouse", "policy": "ppo", "skill": "pick_nav_place",
+            "object": "bowl", "outcome": stages[-1] if len(stages) == 3 or stages[-1] != "S" else "F",
+            "mode": segments[-1]["mode"], "cause": None, "segments": segments}
+
+
+def test_chained_stages_render_with_conditional_success(tmp_path):
+    rows = [_chain_row(0, ["S", "S", "S"]), _chain_row(1, ["S", "F"]), _chain_row(2, ["F"]), _chain_row(3, ["S", "S", "F"])]
+    write_results(tmp_path / "chain.json", summarize(rows, {"command": "aerobench eval --chain pick,transport,place"},
+                                                     label="ppo (chained)"))
+    build_leaderboard([tmp_path / "chain.json"], tmp_path / "lb")
+    md = (tmp_path / "lb" / "TidyHouse.md").read_text()
+    # pick 3 of 4; transport 2 of the 3 that reached it; place 1 of 2
+    assert "| ppo (chained) | pick_nav_place | pick 3/4 (75.0 ± 21.7) | nav 2/3 (66.7 ± 27.2) | place 1/2 (50.0 ± 35.4) |" in md
+    assert "nav 2/3 (66.7 ± 27.2)" in (tmp_path / "lb" / "index.html").read_text()

@@ -245,3 +245,18 @@ def test_episodes_of_another_shape_are_refused(tmp_path):
         sink.write(make_episode(1, cameras=True))
     with pytest.raises(ValueError, match="does not match this dataset"):
         sink.write(make_episode(2, platform="arm"))
+
+
+def test_an_initialization_failure_without_frames_is_a_record_only_even_when_keeping_all(tmp_path):
+    """The runner hands over an init failure with no frames at all; keep=None must not choke on it."""
+    root = tmp_path / "ds"
+    sink = DatasetSink(root, SPEC, keep=None, part_size=2)
+    failed = make_episode(0, steps=0, outcome="I", mode="init_failure")
+    failed.frames.clear()
+    assert failed.num_frames == 0
+    sink.write(failed)
+    sink.write(make_episode(1))
+    sink.close()
+    assert load(root).num_episodes == 1
+    records = read_jsonl(root / ".aerobench" / "records.jsonl")
+    assert [(r["episode_index"], r["in_dataset"]) for r in records] == [(0, False), (1, True)]

@@ -2,41 +2,18 @@
 config, unmodified -> a checkpoint -> `aerobench eval --policy P --checkpoint DIR` -> results with its provenance."""
 
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from aerobench.export import DatasetSink
-from aerobench.rollout.runner import RolloutRunner, RolloutSpec
-
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
 
-def _run(cmd: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "WANDB_MODE": "disabled"}
-    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    return proc
-
-
-@pytest.fixture(scope="module")
-def camera_dataset(tmp_path_factory) -> Path:
-    """Two short random-policy Pick episodes with the three RGB-D cameras, exported as a LeRobotDataset."""
-    root = tmp_path_factory.mktemp("lerobot") / "ds"
-    spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=2, objects=("master_chef_can",), policy="random",
-                       record_cameras=True, max_steps=12)
-    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"})
-    RolloutRunner(spec, sink).run()
-    sink.close()
-    return root
-
-
 @pytest.mark.parametrize("policy", ["act", "diffusion"])
-def test_policy_trains_with_the_repo_config_and_evaluates(policy, camera_dataset, tmp_path):
+def test_policy_trains_with_the_repo_config_and_evaluates(policy, camera_dataset, run_offline, tmp_path):
+    _run = run_offline
     train_dir = tmp_path / "train"
     label = f"{policy} (2 steps, test)"
     _run([str(BIN / "lerobot-train"), "--config_path", str(REPO / "configs" / f"{policy}_tidy_house.json"),
@@ -61,3 +38,20 @@ def test_policy_trains_with_the_repo_config_and_evaluates(policy, camera_dataset
     # an untrained policy cannot pick in 8 steps: every episode ends truncated or failed, and is counted
     assert sum(cell["outcomes"].values()) == 2 and cell["successes"] == 0
     assert all(r["steps"] <= 8 for r in records)
+
+
+def test_lerobot_train_evaluates_in_the_aerobench_env_during_training(camera_dataset, run_offline, tmp_path):
+    """`--env.type aerobench` (registered by the lerobot_env_aerobench plugin) runs LeRobot's own rollout
+    evaluation inside lerobot-train: metrics in the log and an episode video from the env's render."""
+    train_dir = tmp_path / "train"
+    proc = run_offline([str(BIN / "lerobot-train"), "--config_path", str(REPO / "configs" / "act_tidy_house.json"),
+                        "--dataset.root", str(camera_dataset), "--steps", "2", "--save_freq", "2", "--batch_size", "2",
+                        "--num_workers", "0", "--output_dir", str(train_dir), "--env_eval_freq", "2",
+                        "--env.type", "aerobench", "--env.task", "TidyHouse/pick", "--env.episode_length", "4",
+                        "--eval.n_episodes", "1", "--eval.batch_size", "1"], cwd=tmp_path)
+    log = proc.stdout + proc.stderr
+    assert "Eval policy at step 2" in log
+    overall = next(line for line in log.splitlines() if "Suite overall aggregated" in line)
+    assert "'n_episodes': 1" in overall and "'pc_success': 0.0" in overall  # 2 steps of training cannot pick
+    (video,) = (train_dir / "eval" / "videos_step_000002").rglob("*.mp4")
+    assert video.stat().st_size > 0

@@ -568,6 +568,22 @@ class AeroSkillEnv(AerialEnv):
                 extra.update(evaluator.privileged_obs())
         return extra
 
+    def task_state(self) -> torch.Tensor:
+        """`(N, 13)` privileged task state (`observations.TASK_STATE_FIELDS`): TCP, object pose, active goal."""
+        n = self.num_envs
+        if self.target is not None:
+            obj_p, obj_q = self.target.pose.p, self.target.pose.q
+        else:
+            obj_p = torch.zeros(n, 3, device=self.device)
+            obj_q = torch.tensor([1.0, 0.0, 0.0, 0.0], device=self.device).expand(n, 4)
+        goal = torch.zeros(n, 3, device=self.device)
+        active = self.active_evaluator_index()
+        for k, evaluator in enumerate(self.evaluators):
+            rows = (active == k).nonzero()[:, 0]
+            if len(rows):
+                goal[rows] = evaluator.anchor(rows).to(goal.dtype)
+        return torch.cat([self.agent.tcp_pose.p, obj_p, obj_q, goal], dim=-1).float()
+
     def get_instruction(self, env: int = 0) -> str:
         return self.instructions[env]
 

@@ -1,0 +1,342 @@
+"""Networks and checkpoints shared by `aerobench train bc` and `aerobench train ppo`, and the `bc` / `ppo` policies.
+
+One actor serves both algorithms, so a BC checkpoint initialises the PPO actor as is. The actor maps a normalized
+19-D proprio state (plus, in the image variant, features of the three RGB-D cameras) to a *normalized* action;
+`act` unnormalizes with the checkpoint's action statistics and clamps to [-1, 1].
+
+A checkpoint folder holds (`CHECKPOINT_FILES`):
+
+    config.json          format, algorithm (bc | ppo), model shape, platform, and the training config
+    model.safetensors    the networks' weights (`actor.*`; PPO adds `critic.*` and `log_std`)
+    normalization.json   state and action mean / std the actor was trained with
+    train_state.pt       optimizer state, step counters and RNG states, for resuming (not needed to act)
+
+Image inputs: per camera, RGB in [0, 1] and depth in metres / `DEPTH_SCALE_M` stacked into 4 channels and reduced
+to `image_size` pixels (area for RGB; nearest for depth so that "no return" zeros do not blur into real depths).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from pathlib import Path
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from .registry import register_policy
+
+CHECKPOINT_FORMAT = "aerobench-learned-v1"
+CONFIG_FILE = "config.json"
+WEIGHTS_FILE = "model.safetensors"
+NORMALIZATION_FILE = "normalization.json"
+TRAIN_STATE_FILE = "train_state.pt"
+CHECKPOINT_FILES = (CONFIG_FILE, WEIGHTS_FILE, NORMALIZATION_FILE)
+CHECKPOINT_SUBDIR = "checkpoint"  # a training run's OUT/checkpoint
+ALGORITHMS = ("bc", "ppo")
+CAMERAS = ("drone_front", "drone_hand", "drone_own")
+DEPTH_SCALE_M = 5.0  # indoor scenes: depths of a few metres map to O(1) inputs
+MM_PER_M = 1000.0
+IMAGE_CHANNELS = 4  # RGB + depth
+STD_FLOOR = 1e-2  # a constant dimension (e.g. an always-open gripper command) must not divide by ~0
+UINT8_MAX = 255.0
+
+
+# ── inputs ────────────────────────────────────────────────────────────────────────────────────────────────────────
+
+
+def decode_packed_depth(packed: torch.Tensor) -> torch.Tensor:
+    """The export's packed depth as LeRobot returns it (float `(..., 3, H, W)` in [0, 1], R high byte, G low byte;
+    `aerobench.export.depth`) -> millimetres `(..., H, W)` float."""
+    high = torch.round(packed[..., 0, :, :] * UINT8_MAX)
+    low = torch.round(packed[..., 1, :, :] * UINT8_MAX)
+    return high * 256.0 + low
+
+
+def camera_input(rgb: torch.Tensor, depth_mm: torch.Tensor, size: int) -> torch.Tensor:
+    """RGB `(N, 3, H, W)` in [0, 1] and depth `(N, H, W)` in mm -> the encoder's `(N, 4, size, size)` input."""
+    rgb = rgb.float()
+    depth = (depth_mm.float() / MM_PER_M / DEPTH_SCALE_M)[:, None]
+    if rgb.shape[-1] != size:
+        rgb = F.interpolate(rgb, size=(size, size), mode="area")
+        depth = F.interpolate(depth, size=(size, size), mode="nearest")
+    return torch.cat([rgb, depth], dim=1)
+
+
+def env_inputs(
+    obs: dict, cameras: tuple[str, ...], image_size: int, task_state: torch.Tensor | None = None
+) -> dict[str, torch.Tensor]:
+    """The actor's inputs from an aerobench env observation (batched `(N, ...)`): state (the proprio state, then
+    the privileged task state `env.task_state()` when the model reads it) and, per camera, images."""
+    state = obs["agent"]["state"].float()
+    if task_state is not None:
+        state = torch.cat([state, task_state.to(state.device).float()], dim=-1)
+    out = {"state": state}
+    for cam in cameras:
+        data = obs["sensor_data"][cam]
+        rgb = data["rgb"].permute(0, 3, 1, 2).float() / UINT8_MAX
+        out[cam] = camera_input(rgb, data["depth"][..., 0].float().clamp_min(0), image_size)
+    return out
+
+
+# ── networks ──────────────────────────────────────────────────────────────────────────────────────────────────────
+
+
+def mlp(sizes: list[int], out_gain: float = 1.0) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for i in range(len(sizes) - 1):
+        linear = nn.Linear(sizes[i], sizes[i + 1])
+        last = i == len(sizes) - 2
+        nn.init.orthogonal_(linear.weight, out_gain if last else 2**0.5)  # CleanRL's layer_init
+        nn.init.zeros_(linear.bias)
+        layers += [linear] if last else [linear, nn.Tanh()]
+    return nn.Sequential(*layers)
+
+
+class CameraEncoder(nn.Module):
+    """A small CNN shared by the cameras; each camera's features keep their slot in the concatenation."""
+
+    def __init__(self, image_size: int, channels: tuple[int, ...], feature_dim: int):
+        super().__init__()
+        layers, c_in = [], IMAGE_CHANNELS
+        for c_out in channels:
+            layers += [nn.Conv2d(c_in, c_out, 3, stride=2, padding=1), nn.ReLU()]
+            c_in = c_out
+        self.conv = nn.Sequential(*layers)
+        side = image_size // 2 ** len(channels)
+        self.head = nn.Sequential(nn.Flatten(), nn.Linear(c_in * side * side, feature_dim), nn.ReLU())
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        return self.head(self.conv(images))
+
+
+class Trunk(nn.Module):
+    """Normalized state (+ camera features) -> an MLP's output; the actor and the critic are each one of these."""
+
+    def __init__(self, model: dict, out_dim: int, out_gain: float):
+        super().__init__()
+        self.cameras = tuple(model["cameras"])
+        in_dim = model["state_dim"]
+        if self.cameras:
+            self.encoder = CameraEncoder(model["image_size"], tuple(model["cnn_channels"]), model["feature_dim"])
+            in_dim += model["feature_dim"] * len(self.cameras)
+        self.mlp = mlp([in_dim, *model["hidden"], out_dim], out_gain)
+
+    def forward(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
+        parts = [inputs["state"]]
+        if self.cameras:
+            n = inputs["state"].shape[0]
+            stacked = torch.cat([inputs[c] for c in self.cameras], 0)  # one encoder pass for all cameras
+            parts += list(self.encoder(stacked).split(n, 0))
+        return self.mlp(torch.cat(parts, -1))
+
+
+def make_actor(model: dict) -> Trunk:
+    return Trunk(model, model["action_dim"], out_gain=0.01)  # small initial actions (CleanRL's actor init)
+
+
+def make_critic(model: dict) -> Trunk:
+    return Trunk(model, 1, out_gain=1.0)
+
+
+def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], cameras: tuple[str, ...] = (),
+               image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32), feature_dim: int = 64,
+               task_state: bool = False) -> dict:
+    """The JSON description of the networks a checkpoint holds (enough to rebuild them)."""
+    unknown = [c for c in cameras if c not in CAMERAS]
+    if unknown:
+        raise ValueError(f"unknown cameras {unknown}; valid: {', '.join(CAMERAS)}")
+    if cameras and image_size % 2 ** len(cnn_channels):
+        raise ValueError(f"image_size {image_size} must be divisible by {2 ** len(cnn_channels)}")
+    return {"state_dim": state_dim, "action_dim": action_dim, "hidden": list(hidden), "cameras": list(cameras),
+            "image_size": image_size, "cnn_channels": list(cnn_channels), "feature_dim": feature_dim,
+            "task_state": task_state}  # state_dim counts the task state's values when it is read
+
+
+class Normalizer(nn.Module):
+    """State and action mean / std (buffers, so they move with the model and never train)."""
+
+    def __init__(self, stats: dict):
+        super().__init__()
+        for key in ("state_mean", "state_std", "action_mean", "action_std"):
+            self.register_buffer(key, torch.tensor(stats[key], dtype=torch.float32))
+
+    def state(self, x: torch.Tensor) -> torch.Tensor:
+        return (x - self.state_mean) / self.state_std
+
+    def action(self, a: torch.Tensor) -> torch.Tensor:
+        return (a - self.action_mean) / self.action_std
+
+    def unaction(self, a: torch.Tensor) -> torch.Tensor:
+        return a * self.action_std + self.action_mean
+
+    def as_dict(self) -> dict:
+        return {k: getattr(self, k).tolist() for k in ("state_mean", "state_std", "action_mean", "action_std")}
+
+
+def normalization_stats(states: torch.Tensor, actions: torch.Tensor) -> dict:
+    """Mean / std (floored at `STD_FLOOR`) of `(T, S)` states and `(T, A)` actions."""
+    return {
+        "state_mean": states.mean(0).tolist(), "state_std": states.std(0, unbiased=False).clamp_min(STD_FLOOR).tolist(),
+        "action_mean": actions.mean(0).tolist(), "action_std": actions.std(0, unbiased=False).clamp_min(STD_FLOOR).tolist(),
+    }
+
+
+def identity_stats(state_dim: int, action_dim: int) -> dict:
+    return {"state_mean": [0.0] * state_dim, "state_std": [1.0] * state_dim,
+            "action_mean": [0.0] * action_dim, "action_std": [1.0] * action_dim}
+
+
+# ── checkpoint folders ────────────────────────────────────────────────────────────────────────────────────────────
+
+
+def resolve_checkpoint(checkpoint: str | Path | None, policy: str = "bc") -> Path:
+    """The checkpoint folder: given it, or a training run's OUT (its `checkpoint/`). One-line errors otherwise."""
+    need = ", ".join(CHECKPOINT_FILES)
+    if not checkpoint:
+        raise ValueError(f"--policy {policy} needs --checkpoint DIR (an `aerobench train {policy}` output folder or "
+                         f"its checkpoint/ holding {need})")
+    path = Path(checkpoint).expanduser()
+    for candidate in (path, path / CHECKPOINT_SUBDIR):
+        if all((candidate / f).is_file() for f in CHECKPOINT_FILES):
+            return candidate
+    raise ValueError(f"no aerobench bc/ppo checkpoint at {path}: the folder (or its {CHECKPOINT_SUBDIR}/) must hold "
+                     f"{need}, written by `aerobench train bc|ppo --out DIR`")
+
+
+def read_config(path: Path) -> dict:
+    try:
+        config = json.loads((path / CONFIG_FILE).read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path / CONFIG_FILE} is not valid JSON ({e}); re-run the training to rewrite it") from None
+    if config.get("format") != CHECKPOINT_FORMAT or config.get("algorithm") not in ALGORITHMS:
+        raise ValueError(f"{path / CONFIG_FILE} is not an aerobench bc/ppo checkpoint config "
+                         f"(format {CHECKPOINT_FORMAT!r}, algorithm one of {', '.join(ALGORITHMS)})")
+    return config
+
+
+def save_checkpoint(folder: Path, config: dict, weights: dict[str, torch.Tensor], normalization: dict,
+                    train_state: dict | None = None) -> Path:
+    """Write a complete checkpoint into `folder/checkpoint`, atomically: a crash leaves the old one or the new one."""
+    from safetensors.torch import save_file
+
+    folder.mkdir(parents=True, exist_ok=True)
+    final, tmp, old = folder / CHECKPOINT_SUBDIR, folder / ".checkpoint-tmp", folder / ".checkpoint-old"
+    if tmp.exists():
+        _rmtree(tmp)
+    tmp.mkdir()
+    (tmp / CONFIG_FILE).write_text(json.dumps({"format": CHECKPOINT_FORMAT, **config}, indent=2, sort_keys=True))
+    save_file({k: v.detach().cpu().contiguous() for k, v in weights.items()}, str(tmp / WEIGHTS_FILE))
+    (tmp / NORMALIZATION_FILE).write_text(json.dumps(normalization, indent=2))
+    if train_state is not None:
+        torch.save(train_state, tmp / TRAIN_STATE_FILE)
+    if final.exists():
+        final.rename(old)
+    tmp.rename(final)
+    if old.exists():
+        _rmtree(old)
+    return final
+
+
+def recover_checkpoint(folder: Path) -> Path | None:
+    """The run's last complete checkpoint (repairing a crash between the two renames of `save_checkpoint`)."""
+    final, old = folder / CHECKPOINT_SUBDIR, folder / ".checkpoint-old"
+    if not final.exists() and old.exists():
+        old.rename(final)
+    return final if final.exists() else None
+
+
+def _rmtree(path: Path) -> None:
+    import shutil
+
+    shutil.rmtree(path)
+
+
+def load_weights(path: Path) -> dict[str, torch.Tensor]:
+    from safetensors.torch import load_file
+
+    return load_file(str(path / WEIGHTS_FILE))
+
+
+def load_actor(path: Path) -> tuple[dict, Trunk, Normalizer]:
+    """(config, actor, normalizer) of a checkpoint folder; the actor is in eval mode on the CPU."""
+    config = read_config(path)
+    actor = make_actor(config["model"])
+    weights = load_weights(path)
+    actor_weights = {k.removeprefix("actor."): v for k, v in weights.items() if k.startswith("actor.")}
+    try:
+        actor.load_state_dict(actor_weights)
+    except RuntimeError as e:
+        raise ValueError(f"{path / WEIGHTS_FILE} does not match the model in {path / CONFIG_FILE}: "
+                         f"{str(e).splitlines()[0]}") from None
+    normalizer = Normalizer(json.loads((path / NORMALIZATION_FILE).read_text()))
+    return config, actor.eval(), normalizer
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_actor(path: Path, mtime_ns: int) -> tuple[dict, Trunk, Normalizer]:
+    return load_actor(path)  # the runner builds a policy per batch: load once per process and checkpoint version
+
+
+# ── the policies ──────────────────────────────────────────────────────────────────────────────────────────────────
+
+
+class LearnedPolicy:
+    """The deterministic actor (the Gaussian's mean for PPO) of a `bc` or `ppo` checkpoint, on a batch of envs."""
+
+    algorithm = "bc"
+
+    def __init__(self, env, checkpoint: str | None = None, **_):
+        self.name = self.algorithm
+        path, _ = self.checked_config(checkpoint)
+        config, self.actor, self.normalizer = _cached_actor(path, (path / WEIGHTS_FILE).stat().st_mtime_ns)
+        model = config["model"]
+        self.cameras, self.image_size = tuple(model["cameras"]), model["image_size"]
+        self.device = env.device
+        self.path, self.state_dim = path, model["state_dim"]
+        self.env, self.reads_task_state = env, bool(model.get("task_state", False))
+        if model["action_dim"] != env.platform.action_dim:
+            raise ValueError(f"checkpoint {path} acts with {model['action_dim']} values; the {env.platform.name} "
+                             f"platform takes {env.platform.action_dim} (train on a dataset of the same platform)")
+
+    @classmethod
+    def checked_config(cls, checkpoint: str | None) -> tuple[Path, dict]:
+        path = resolve_checkpoint(checkpoint, cls.algorithm)
+        config = read_config(path)
+        if config["algorithm"] != cls.algorithm:
+            raise ValueError(f"checkpoint {path} holds a {config['algorithm']} policy; use --policy {config['algorithm']}")
+        return path, config
+
+    @classmethod
+    def needs_images(cls, checkpoint: str | None) -> bool:
+        """Whether the actor reads the cameras; also the early check of the checkpoint (before any env is built)."""
+        return bool(cls.checked_config(checkpoint)[1]["model"]["cameras"])
+
+    def reset(self, env_idx: torch.Tensor) -> None:
+        """The actor is memoryless: nothing to clear."""
+
+    @torch.no_grad()
+    def act(self, obs) -> torch.Tensor:
+        task_state = self.env.task_state() if self.reads_task_state else None
+        inputs = {k: v.cpu() for k, v in env_inputs(obs, self.cameras, self.image_size, task_state).items()}
+        if inputs["state"].shape[-1] != self.state_dim:
+            raise ValueError(f"checkpoint {self.path} reads a {self.state_dim}-D state; the env gives "
+                             f"{inputs['state'].shape[-1]} (train on the same platform)")
+        inputs["state"] = self.normalizer.state(inputs["state"])
+        action = self.normalizer.unaction(self.actor(inputs))
+        return action.clamp(-1.0, 1.0).to(self.device)
+
+
+@register_policy("bc")
+class BCPolicy(LearnedPolicy):
+    """Behaviour cloning from `aerobench train bc`."""
+
+    algorithm = "bc"
+
+
+@register_policy("ppo")
+class PPOPolicy(LearnedPolicy):
+    """PPO's actor mean from `aerobench train ppo`."""
+
+    algorithm = "ppo"

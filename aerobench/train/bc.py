@@ -1,0 +1,224 @@
+"""`aerobench train bc`: behaviour cloning on an exported aerobench LeRobotDataset (CleanRL style, one file).
+
+Spec, "Skill Policy Learning": imitate the continuous expert actions of *successful* demonstrations by minimizing the
+mean squared error between predicted and normalized actions. The episodes come from the dataset's annotation
+(`meta/aerobench_episodes.jsonl`, outcome "S" by default); the state variant reads `observation.state`, the image
+variant adds the three RGB-D cameras (`observation.images.<cam>`, `observation.depth.<cam>`).
+
+Read top to bottom: config -> demonstrations -> normalization -> networks -> loop (log, checkpoint) -> checkpoint.
+Batches are drawn from a generator seeded by (seed, step), so a resumed run draws exactly the batches an
+uninterrupted one would: resuming from step N to 2N gives the same weights as one run of 2N steps.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from torch.nn import functional as F
+
+from ..policies.learned import (
+    CAMERAS,
+    Normalizer,
+    camera_input,
+    decode_packed_depth,
+    load_weights,
+    make_actor,
+    model_spec,
+    normalization_stats,
+    read_config,
+    recover_checkpoint,
+    save_checkpoint,
+)
+from .common import ScalarLog, check_resumable, config_dict, load_train_state, seed_everything, torch_threads
+
+OUTCOMES = ("S", "F", "T", "I")
+BATCH_SEED_STRIDE = 1_000_003  # batch generator seed = seed * stride + step: distinct streams per seed
+EPISODES_FILE = "meta/aerobench_episodes.jsonl"
+STATE_KEY, ACTION_KEY, TASK_STATE_KEY = "observation.state", "action", "observation.environment_state"
+# Options that may change when a run is resumed (the budget and the bookkeeping cadence).
+RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads")
+
+
+@dataclass
+class BCConfig:
+    dataset: str = field(default=None, metadata={"help": "exported aerobench dataset folder (LeRobotDataset root)"})
+    out: str = field(default=None, metadata={"help": "run folder: checkpoint/, scalars.jsonl"})
+    steps: int = field(default=10_000, metadata={"help": "gradient steps in total (a resumed run continues to this)"})
+    seed: int = field(default=0, metadata={"help": "seed of the network init and the batch order"})
+    images: bool = field(default=False, metadata={"help": "image variant: add the three RGB-D cameras"})
+    task_state: bool = field(default=True, metadata={"help": "also read the privileged task state "
+                             "(observation.environment_state: TCP, object pose, goal point)"})
+    batch_size: int = field(default=256, metadata={"help": "frames per gradient step"})
+    learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
+    hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes"})
+    outcomes: tuple[str, ...] = field(default=("S",), metadata={"help": "episode outcomes to train on (spec: S)"})
+    image_size: int = field(default=64, metadata={"help": "camera images are reduced to this many pixels a side"})
+    save_every: int = field(default=1_000, metadata={"help": "checkpoint every N steps (and at the end)"})
+    log_every: int = field(default=50, metadata={"help": "log scalars every N steps"})
+    repo_id: str = field(default="local/aerobench", metadata={"help": "LeRobot repo id of the local dataset"})
+    progress: bool = field(default=True, metadata={"help": "show a progress bar"})
+    threads: int = field(default=1, metadata={"help": "torch CPU threads (1 is fastest for these small networks)"})
+
+    def __post_init__(self):
+        if not self.dataset or not self.out:
+            raise ValueError("BCConfig needs dataset=DIR (an exported aerobench dataset) and out=DIR")
+        self.hidden, self.outcomes = tuple(self.hidden), tuple(self.outcomes)
+        for name in ("steps", "batch_size", "save_every", "log_every", "image_size", "threads"):
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) > 0):
+                raise ValueError(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(self, name)}")
+        if not self.learning_rate > 0:
+            raise ValueError(f"--learning-rate must be positive, got {self.learning_rate}")
+        bad = [o for o in self.outcomes if o not in OUTCOMES]
+        if bad or not self.outcomes:
+            raise ValueError(f"unknown outcomes {bad}; valid: {', '.join(OUTCOMES)} (S = successful demonstrations)")
+        if not self.hidden or min(self.hidden) < 1:
+            raise ValueError(f"--hidden needs positive sizes, e.g. 256,256; got {self.hidden}")
+
+
+# ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
+
+
+def select_episodes(root: Path, outcomes: tuple[str, ...]) -> list[int]:
+    """Dataset episode indices whose annotated outcome is one of `outcomes`."""
+    from ..export import read_jsonl
+
+    path = root / EPISODES_FILE
+    if not path.is_file():
+        raise ValueError(f"{root} has no {EPISODES_FILE}: BC reads an aerobench export (aerobench generate --out DIR, "
+                         f"merged) whose annotations name each episode's outcome")
+    return [int(r["dataset_episode_index"]) for r in read_jsonl(path) if r["outcome"] in outcomes]
+
+
+def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
+    """All frames of the selected episodes in memory: `state`, `action` and (image variant) one `(T, 4, s, s)`
+    float16 tensor per camera; plus facts about them (episodes, frames, robot type)."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    root = Path(config.dataset)
+    if not (root / "meta" / "info.json").is_file():
+        raise ValueError(f"no LeRobot dataset at {root} (meta/info.json missing); export one with aerobench generate")
+    episodes = select_episodes(root, config.outcomes)
+    if not episodes:
+        raise ValueError(f"{root} has no episode with outcome {'/'.join(config.outcomes)} to train on")
+    ds = LeRobotDataset(config.repo_id, root=root)
+    if config.images:
+        missing = [c for c in CAMERAS if f"observation.images.{c}" not in ds.features]
+        if missing:
+            raise ValueError(f"{root} has no camera features ({', '.join(missing)}); export with cameras or drop --images")
+    columns = ["episode_index", STATE_KEY, ACTION_KEY]
+    if config.task_state:
+        if TASK_STATE_KEY not in ds.features:
+            raise ValueError(f"{root} has no {TASK_STATE_KEY} (exported by an older aerobench); re-export it, or "
+                             f"train on the proprio state alone with --no-task-state")
+        columns.append(TASK_STATE_KEY)
+    table = ds.hf_dataset.select_columns(columns).with_format("torch")[:]
+    chosen = torch.isin(table["episode_index"], torch.tensor(episodes)).nonzero()[:, 0]
+    state = table[STATE_KEY][chosen].float()
+    if config.task_state:
+        state = torch.cat([state, table[TASK_STATE_KEY][chosen].float()], dim=-1)
+    data = {"state": state, "action": table[ACTION_KEY][chosen].float()}
+    if config.images:
+        frames = {cam: [] for cam in CAMERAS}
+        for i in chosen.tolist():  # decoding video is the slow part; done once, kept reduced in memory
+            item = ds[i]
+            for cam in CAMERAS:
+                rgb = item[f"observation.images.{cam}"][None]
+                depth = decode_packed_depth(item[f"observation.depth.{cam}"][None])
+                frames[cam].append(camera_input(rgb, depth, config.image_size).half())
+        data.update({cam: torch.cat(frames[cam]) for cam in CAMERAS})
+    facts = {"episodes": len(episodes), "frames": len(chosen), "robot_type": ds.meta.robot_type,
+             "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames}
+    return data, facts
+
+
+# ── training ──────────────────────────────────────────────────────────────────────────────────────────────────────
+
+
+def train_bc(config: BCConfig) -> Path:
+    """Train (or resume) a BC policy; returns the checkpoint folder (`--policy bc --checkpoint DIR`)."""
+    with torch_threads(config.threads):
+        return _train_bc(config)
+
+
+def _train_bc(config: BCConfig) -> Path:
+    out = Path(config.out)
+    current = config_dict(config)
+    start, train_state = 0, None
+    checkpoint = recover_checkpoint(out)
+    if checkpoint is not None:
+        saved = read_config(checkpoint)
+        if saved["algorithm"] != "bc":
+            raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
+        check_resumable(saved["train"], current, out, RESUMABLE_CHANGES)
+        train_state = load_train_state(checkpoint, out)
+        start = train_state["step"]
+        if start >= config.steps:
+            return checkpoint
+
+    data, facts = load_demos(config)
+    state_dim, action_dim = data["state"].shape[1], data["action"].shape[1]
+    cameras = CAMERAS if config.images else ()
+    model = model_spec(state_dim, action_dim, config.hidden, cameras, config.image_size, task_state=config.task_state)
+    normalizer = Normalizer(normalization_stats(data["state"], data["action"]))
+    targets = normalizer.action(data["action"])
+    states = normalizer.state(data["state"])
+
+    seed_everything(config.seed)
+    actor = make_actor(model)
+    optimizer = torch.optim.Adam(actor.parameters(), lr=config.learning_rate)
+    if train_state is not None:
+        actor.load_state_dict({k.removeprefix("actor."): v for k, v in load_weights(checkpoint).items()})
+        optimizer.load_state_dict(train_state["optimizer"])
+
+    meta = {"algorithm": "bc", "model": model, "train": current, "data": facts,
+            "platform": facts["robot_type"].removeprefix("aerobench_") if facts["robot_type"] else None}
+
+    def save(step: int) -> Path:
+        weights = {f"actor.{k}": v for k, v in actor.state_dict().items()}
+        state = {"step": step, "optimizer": optimizer.state_dict()}
+        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state)
+
+    log = ScalarLog(out, start)
+    bar = _progress(config, start)
+    n = len(states)
+    t0, steps_done, loss_sum = time.perf_counter(), 0, 0.0
+    path = checkpoint
+    actor.train()
+    for step in range(start + 1, config.steps + 1):
+        generator = torch.Generator().manual_seed(config.seed * BATCH_SEED_STRIDE + step)
+        idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
+        inputs = {"state": states[idx], **{cam: data[cam][idx].float() for cam in cameras}}
+        loss = F.mse_loss(actor(inputs), targets[idx])
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        loss_sum += loss.item()
+        steps_done += 1
+        if step % config.log_every == 0 or step == config.steps:
+            elapsed = time.perf_counter() - t0
+            log.add("losses/bc", loss_sum / steps_done, step)
+            log.add("charts/SPS", steps_done / elapsed, step)  # gradient steps per second
+            log.add("charts/frames_per_s", steps_done * len(idx) / elapsed, step)
+            if bar is not None:
+                bar.set_postfix_str(f"loss {loss_sum / steps_done:.4f}")
+            t0, steps_done, loss_sum = time.perf_counter(), 0, 0.0
+        if step % config.save_every == 0 or step == config.steps:
+            log.flush()  # the scalars up to a checkpoint are on disk before it
+            path = save(step)
+        if bar is not None:
+            bar.update(1)
+    log.close()
+    if bar is not None:
+        bar.close()
+    return path
+
+
+def _progress(config: BCConfig, start: int):
+    if not config.progress:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=config.steps, initial=start, unit="step", desc="bc", dynamic_ncols=True)

@@ -1,0 +1,481 @@
+"""`aerobench train ppo`: PPO on one skill env, from scratch or from a BC checkpoint (CleanRL style, one file).
+
+Spec, "PPO Training": a Gaussian actor with a separate critic, generalized advantage estimation and clipped policy
+updates; rewards from task progress and success with penalties for undesirable actions and contacts
+(`aerobench.train.rewards`); optionally initialised from a BC policy with critic warm-up and imitation
+regularization. The spec's reference configuration is the default: 64-step rollout windows, gamma 0.97, clip 0.2.
+The spec states no other hyper-parameter; the rest are CleanRL's `ppo_continuous_action.py` defaults, except 4
+minibatches (64 samples per window on one CPU env) and no learning-rate annealing (so a run can be resumed with a
+larger budget).
+
+Read top to bottom: config -> env -> networks -> storage -> loop (rollout window, GAE, clipped update, log,
+checkpoint). All envs step together (`num_envs` on physx_cuda; one env per process on physx_cpu). Actions are
+sampled in the actor's normalized action space and sent to the env unnormalized and clamped to [-1, 1].
+Every finished training episode is appended to `OUT/train_episodes.jsonl`. A checkpoint is written after a window
+(every `save_every` windows and at the end); a resumed run continues from the last one with fresh episodes (the
+ones in flight at the interrupt are dropped, their interactions stay counted) and drops the log lines written
+after it, so no window is lost or counted twice.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from torch import nn
+from torch.distributions import Normal
+
+from ..policies.learned import (
+    Normalizer,
+    env_inputs,
+    identity_stats,
+    load_actor,
+    load_weights,
+    make_actor,
+    make_critic,
+    model_spec,
+    read_config,
+    recover_checkpoint,
+    resolve_checkpoint,
+    save_checkpoint,
+)
+from .common import (
+    ScalarLog,
+    check_resumable,
+    config_dict,
+    load_train_state,
+    seed_everything,
+    torch_threads,
+    truncate_jsonl,
+)
+
+EPISODES_FILE = "train_episodes.jsonl"
+RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + episodes started
+MAX_RESET_TRIES = 20  # a start the env cannot place (init_failed) is re-drawn this often before giving up
+SUCCESS_WINDOW = 100  # charts/success_rate: the last 100 finished episodes
+SIM_BACKENDS = ("physx_cpu", "physx_cuda")
+RESUMABLE_CHANGES = ("total_steps", "save_every", "progress", "threads")
+
+
+@dataclass
+class PPOConfig:
+    setting: str = field(default=None, metadata={"help": "TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement"})
+    skill: str = field(default=None, metadata={"help": "pick, place, nav, open or close"})
+    out: str = field(default=None, metadata={"help": "run folder: checkpoint/, scalars.jsonl, train_episodes.jsonl"})
+    objects: tuple[str, ...] | None = field(default=None, metadata={"help": "objects, round-robin over episodes "
+                                                                            "(default: the setting's, sampled)"})
+    total_steps: int = field(default=1_000_000, metadata={"help": "env steps in total (a resumed run continues to this)"})
+    seed: int = field(default=0, metadata={"help": "seed of the networks, the action noise and the episodes"})
+    num_envs: int = field(default=1, metadata={"help": "parallel envs (physx_cuda; physx_cpu runs 1)"})
+    sim_backend: str = field(default="physx_cpu", metadata={"help": "physx_cpu or physx_cuda"})
+    init_bc: str | None = field(default=None, metadata={"help": "BC checkpoint to initialise the actor (and its "
+                                                                 "normalization) from"})
+    num_steps: int = field(default=64, metadata={"help": "rollout window per env (spec: 64)"})
+    gamma: float = field(default=0.97, metadata={"help": "discount (spec: 0.97)"})
+    clip_coef: float = field(default=0.2, metadata={"help": "policy clip (spec: 0.2)"})
+    gae_lambda: float = field(default=0.95, metadata={"help": "GAE lambda"})
+    learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
+    update_epochs: int = field(default=10, metadata={"help": "epochs over each window"})
+    num_minibatches: int = field(default=4, metadata={"help": "minibatches per epoch"})
+    ent_coef: float = field(default=0.0, metadata={"help": "entropy bonus"})
+    vf_coef: float = field(default=0.5, metadata={"help": "value loss weight"})
+    max_grad_norm: float = field(default=0.5, metadata={"help": "gradient clip"})
+    norm_adv: bool = field(default=True, metadata={"help": "normalize advantages per minibatch"})
+    clip_vloss: bool = field(default=True, metadata={"help": "clip the value loss"})
+    target_kl: float | None = field(default=None, metadata={"help": "stop a window's epochs beyond this KL"})
+    hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes (from scratch)"})
+    task_state: bool = field(default=True, metadata={"help": "from scratch: also read the privileged task state "
+                             "(env.task_state(): TCP, object pose, goal point); --init-bc keeps the BC model's choice"})
+    init_log_std: float = field(default=-0.5, metadata={"help": "initial log std of the Gaussian (normalized actions)"})
+    critic_warmup_steps: int = field(default=0, metadata={"help": "env steps at the start that train only the critic"})
+    bc_coef: float = field(default=0.0, metadata={"help": "imitation regularization: weight of the MSE to the "
+                                                          "frozen BC actor (needs --init-bc)"})
+    bc_decay_steps: int = field(default=0, metadata={"help": "env steps over which bc_coef decays linearly to 0 "
+                                                             "(0: constant)"})
+    max_episode_steps: int | None = field(default=None, metadata={"help": "episode length (default: the env's)"})
+    platform: str | None = field(default=None, metadata={"help": "gripper or arm (default: the skill's)"})
+    controller: str = field(default="payload-aware", metadata={"help": "payload-aware or nominal"})
+    save_every: int = field(default=10, metadata={"help": "checkpoint every N windows (and at the end)"})
+    progress: bool = field(default=True, metadata={"help": "show a progress bar"})
+    threads: int = field(default=1, metadata={"help": "torch CPU threads (1 is fastest for these small networks)"})
+
+    def __post_init__(self):
+        from ..envs.checker import SKILL_ENV_IDS
+        from ..envs.tasks import get_setting
+
+        if not self.setting or not self.skill or not self.out:
+            raise ValueError("PPOConfig needs setting=, skill= and out=")
+        self.hidden = tuple(self.hidden)
+        self.objects = tuple(self.objects) if self.objects else None
+        setting = get_setting(self.setting)  # unknown settings list the valid ones
+        if self.skill not in SKILL_ENV_IDS:
+            raise ValueError(f"unknown skill {self.skill!r}; PPO trains one of: {', '.join(SKILL_ENV_IDS)}")
+        setting.check_skill(self.skill)
+        for obj in self.objects or ():
+            setting.check_object(obj)
+        if self.sim_backend not in SIM_BACKENDS:
+            raise ValueError(f"unknown --sim-backend {self.sim_backend!r}; valid: {', '.join(SIM_BACKENDS)}")
+        if self.sim_backend == "physx_cpu" and self.num_envs != 1:
+            raise ValueError("physx_cpu runs one env per process: use --num-envs 1, or --sim-backend physx_cuda")
+        for name in ("total_steps", "num_envs", "num_steps", "update_epochs", "num_minibatches", "save_every", "threads"):
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) > 0):
+                raise ValueError(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(self, name)}")
+        if (self.num_steps * self.num_envs) % self.num_minibatches:
+            raise ValueError(f"--num-minibatches ({self.num_minibatches}) must divide num_steps x num_envs "
+                             f"({self.num_steps * self.num_envs})")
+        if not (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1 and self.clip_coef > 0 and self.learning_rate > 0):
+            raise ValueError("need 0 < gamma <= 1, 0 <= gae_lambda <= 1, clip_coef > 0 and learning_rate > 0")
+        if self.bc_coef < 0 or self.critic_warmup_steps < 0 or self.bc_decay_steps < 0:
+            raise ValueError("--bc-coef, --critic-warmup-steps and --bc-decay-steps must not be negative")
+        if (self.bc_coef > 0 or self.critic_warmup_steps > 0) and not self.init_bc:
+            raise ValueError("--bc-coef and --critic-warmup-steps apply to a BC-initialised run: add --init-bc DIR")
+        if self.init_bc:
+            resolve_checkpoint(self.init_bc, "bc")  # a missing checkpoint fails before the env is built
+        from ..envs.control.payload import ControllerMode
+        from ..envs.platforms import get_platform
+
+        ControllerMode.parse(self.controller)  # unknown names list the valid ones
+        if self.platform:
+            get_platform(self.platform)
+        if self.max_episode_steps is not None and self.max_episode_steps < 1:
+            raise ValueError(f"--max-episode-steps must be a positive integer, got {self.max_episode_steps}")
+
+    @property
+    def batch_size(self) -> int:
+        return self.num_steps * self.num_envs
+
+
+class RunningMeanStd:
+    """Running state mean / variance (Welford over batches), for runs from scratch (CleanRL normalizes observations)."""
+
+    def __init__(self, dim: int):
+        self.mean, self.var, self.count = torch.zeros(dim), torch.ones(dim), 1e-4
+
+    def update(self, x: torch.Tensor) -> None:
+        mean, var, n = x.mean(0), x.var(0, unbiased=False), x.shape[0]
+        delta, total = mean - self.mean, self.count + n
+        self.mean = self.mean + delta * n / total
+        self.var = (self.var * self.count + var * n + delta.pow(2) * self.count * n / total) / total
+        self.count = total
+
+    def state(self) -> dict:
+        return {"mean": self.mean, "var": self.var, "count": self.count}
+
+    def load(self, state: dict) -> None:
+        self.mean, self.var, self.count = state["mean"], state["var"], state["count"]
+
+
+class SkillEnv:
+    """The skill env with episode bookkeeping: seeded resets (re-drawn while a start is infeasible), objects
+    round-robin, and per-env partial resets of finished episodes."""
+
+    def __init__(self, config: PPOConfig, obs_mode: str, episodes_started: int):
+        import gymnasium as gym
+
+        from ..envs.checker import SKILL_ENV_IDS
+
+        self.config = config
+        kwargs = dict(setting=config.setting, obs_mode=obs_mode, num_envs=config.num_envs,
+                      sim_backend=config.sim_backend, controller=config.controller)
+        if config.platform:
+            kwargs["platform"] = config.platform
+        if config.max_episode_steps:
+            kwargs["max_episode_steps"] = config.max_episode_steps
+        if config.objects and len(config.objects) == 1:
+            kwargs["object"] = config.objects[0]
+        self.env = gym.make(SKILL_ENV_IDS[config.skill], **kwargs)
+        self.base = self.env.unwrapped
+        self.n, self.device = self.base.num_envs, self.base.device
+        self.started = episodes_started
+
+    def _objects(self) -> list[str] | None:
+        objects = self.config.objects
+        if not objects or len(objects) == 1:
+            return None
+        return [objects[(self.started + i) % len(objects)] for i in range(self.n)]
+
+    def reset_all(self):
+        for _ in range(MAX_RESET_TRIES):
+            seed = self.config.seed * RESET_SEED_STRIDE + self.started
+            options = {"reconfigure": True}
+            if self._objects():
+                options["objects"] = self._objects()
+            obs, info = self.env.reset(seed=[seed + i for i in range(self.n)] if self.n > 1 else seed, options=options)
+            self.started += self.n
+            if self.n > 1 or not bool(info["init_failed"].any()):
+                break
+        else:
+            raise RuntimeError(f"{MAX_RESET_TRIES} resets of {self.config.skill} in {self.config.setting} found no "
+                               f"feasible start")
+        if self.n > 1 and bool(info["init_failed"].any()):
+            obs, info = self.reset_some(info["init_failed"].nonzero()[:, 0], obs, info)
+        return obs, info
+
+    def reset_some(self, idx: torch.Tensor, obs, info):
+        """Reset the envs `idx` (all of them on one env); returns the batch's observation and info."""
+        if self.n == 1:
+            return self.reset_all()
+        for _ in range(MAX_RESET_TRIES):
+            new_obs, new_info = self.env.reset(options={"env_idx": idx.to(self.device)})
+            self.started += len(idx)
+            obs, info = new_obs, new_info
+            idx = idx[info["init_failed"][idx].cpu()]
+            if len(idx) == 0:
+                return obs, info
+        raise RuntimeError(f"{MAX_RESET_TRIES} resets found no feasible start for envs {idx.tolist()}")
+
+
+def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
+    return {k: v[index] for k, v in storage.items()}
+
+
+def train_ppo(config: PPOConfig) -> Path:
+    """Train (or resume) PPO; returns the checkpoint folder (`--policy ppo --checkpoint DIR`)."""
+    with torch_threads(config.threads):
+        return _train_ppo(config)
+
+
+def _train_ppo(config: PPOConfig) -> Path:
+    from .rewards import potential, reward
+
+    out = Path(config.out)
+    current = config_dict(config)
+    train_state, checkpoint = None, recover_checkpoint(out)
+    if checkpoint is not None:
+        saved = read_config(checkpoint)
+        if saved["algorithm"] != "ppo":
+            raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
+        check_resumable(saved["train"], current, out, RESUMABLE_CHANGES)
+        train_state = load_train_state(checkpoint, out)
+        if train_state["global_step"] >= config.total_steps:
+            return checkpoint
+    global_step = train_state["global_step"] if train_state else 0
+    iteration = train_state["iteration"] if train_state else 0
+    episodes_done = train_state["episodes"] if train_state else 0
+
+    # ── networks ──
+    seed_everything(config.seed)
+    bc_actor = None
+    if config.init_bc:
+        bc_config, bc_actor, bc_norm = load_actor(resolve_checkpoint(config.init_bc, "bc"))
+        if bc_config["algorithm"] != "bc":
+            raise ValueError(f"--init-bc {config.init_bc} holds a {bc_config['algorithm']} checkpoint, not bc")
+        model, stats = bc_config["model"], bc_norm.as_dict()
+    obs_mode = "rgbd" if config.init_bc and model["cameras"] else "state_dict"
+    env = SkillEnv(config, obs_mode, train_state["episodes_started"] if train_state else 0)
+    action_dim = env.base.platform.action_dim
+    obs, info = env.reset_all()
+    reads_task_state = bool(model.get("task_state", False)) if bc_actor is not None else config.task_state
+    state_dim = obs["agent"]["state"].shape[-1] + (env.base.task_state().shape[-1] if reads_task_state else 0)
+    if bc_actor is None:
+        model = model_spec(state_dim, action_dim, config.hidden, task_state=reads_task_state)
+        stats = identity_stats(state_dim, action_dim)
+    elif (model["state_dim"], model["action_dim"]) != (state_dim, action_dim):
+        raise ValueError(f"--init-bc {config.init_bc} was trained for state {model['state_dim']} / action "
+                         f"{model['action_dim']}; this env has {state_dim} / {action_dim} (same platform needed)")
+    actor, critic = make_actor(model), make_critic(model)
+    if bc_actor is not None:
+        actor.load_state_dict(bc_actor.state_dict())
+        bc_actor.requires_grad_(False)
+    log_std = nn.Parameter(torch.full((action_dim,), float(config.init_log_std)))
+    normalizer = Normalizer(stats)
+    obs_rms = RunningMeanStd(state_dim) if bc_actor is None else None  # a BC actor keeps the stats it learned with
+    optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters(), log_std], lr=config.learning_rate, eps=1e-5)
+    if train_state is not None:
+        weights = load_weights(checkpoint)
+        actor.load_state_dict({k.removeprefix("actor."): v for k, v in weights.items() if k.startswith("actor.")})
+        critic.load_state_dict({k.removeprefix("critic."): v for k, v in weights.items() if k.startswith("critic.")})
+        with torch.no_grad():
+            log_std.copy_(weights["log_std"])
+        optimizer.load_state_dict(train_state["optimizer"])
+        normalizer = Normalizer(json.loads((checkpoint / "normalization.json").read_text()))
+        if obs_rms is not None:
+            obs_rms.load(train_state["obs_rms"])
+        torch.set_rng_state(train_state["torch_rng"])
+
+    cameras, image_size = tuple(model["cameras"]), model["image_size"]
+    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.base.platform.name,
+            "init_bc": str(Path(config.init_bc).resolve()) if config.init_bc else None}
+
+    def inputs_of(obs) -> dict[str, torch.Tensor]:
+        task_state = env.base.task_state() if reads_task_state else None
+        return {k: v.cpu() for k, v in env_inputs(obs, cameras, image_size, task_state).items()}
+
+    def normed(x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        return {**x, "state": normalizer.state(x["state"])}
+
+    def save() -> Path:
+        weights = {**{f"actor.{k}": v for k, v in actor.state_dict().items()},
+                   **{f"critic.{k}": v for k, v in critic.state_dict().items()}, "log_std": log_std.detach()}
+        state = {"global_step": global_step, "iteration": iteration, "episodes": episodes_done,
+                 "episodes_started": env.started, "optimizer": optimizer.state_dict(),
+                 "torch_rng": torch.get_rng_state(), "obs_rms": obs_rms.state() if obs_rms else None}
+        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state)
+
+    # ── storage, preallocated (num_steps, num_envs, ...) ──
+    T, N = config.num_steps, env.n
+    raw = inputs_of(obs)
+    buf_inputs = {k: torch.zeros((T, *v.shape), dtype=torch.float32) for k, v in raw.items()}
+    buf_raw_state = torch.zeros((T, N, state_dim))
+    actions, logprobs = torch.zeros((T, N, action_dim)), torch.zeros((T, N))
+    rewards, dones, values = torch.zeros((T, N)), torch.zeros((T, N)), torch.zeros((T, N))
+
+    out.mkdir(parents=True, exist_ok=True)
+    episodes_path = out / EPISODES_FILE
+    truncate_jsonl(episodes_path, "global_step", global_step)
+    episode_log = open(episodes_path, "a")
+    log = ScalarLog(out, global_step)
+    bar = None
+    if config.progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=config.total_steps, initial=global_step, unit="step", desc=f"ppo {config.skill}", dynamic_ncols=True)
+
+    next_done = torch.zeros(N)
+    prev_phi = potential(config.skill, info).cpu()
+    ep_return, ep_length = torch.zeros(N), torch.zeros(N, dtype=torch.long)
+    recent: list[bool] = []
+    path = checkpoint
+    while global_step < config.total_steps:
+        iteration += 1
+        t0, window_start = time.perf_counter(), global_step
+        for step in range(T):
+            global_step += N
+            x = inputs_of(obs)
+            buf_raw_state[step] = x["state"]
+            x = normed(x)
+            for k, v in x.items():
+                buf_inputs[k][step] = v
+            dones[step] = next_done
+            with torch.no_grad():
+                mean, value = actor(x), critic(x)[:, 0]
+                dist = Normal(mean, log_std.exp())
+                action = dist.sample()
+            actions[step], logprobs[step], values[step] = action, dist.log_prob(action).sum(-1), value
+            env_action = normalizer.unaction(action).clamp(-1.0, 1.0)
+            obs, _, terminated, truncated, info = env.env.step(env_action.to(env.device))
+            r, phi, _ = reward(config.skill, info, prev_phi.to(env.device), env_action.to(env.device))
+            r, phi = r.cpu().float(), phi.cpu()
+            terminated, truncated = terminated.cpu().bool(), truncated.cpu().bool()
+            cut = truncated & ~terminated
+            if cut.any():  # a time limit is not an end of the task: bootstrap from the last state's value
+                with torch.no_grad():
+                    last_value = critic(normed(inputs_of(obs)))[:, 0]
+                r = r + config.gamma * last_value * cut
+            rewards[step] = r
+            ep_return += r
+            ep_length += 1
+            done = terminated | truncated
+            next_done = done.float()
+            prev_phi = phi
+            if done.any():
+                success = info["success"].cpu().bool()
+                for i in done.nonzero()[:, 0].tolist():
+                    episodes_done += 1
+                    recent = (recent + [bool(success[i])])[-SUCCESS_WINDOW:]
+                    episode_log.write(json.dumps({"global_step": global_step, "episode": episodes_done,
+                                                  "success": bool(success[i]), "return": float(ep_return[i]),
+                                                  "length": int(ep_length[i])}) + "\n")
+                    log.add("charts/episodic_return", float(ep_return[i]), global_step)
+                    log.add("charts/episodic_length", int(ep_length[i]), global_step)
+                ep_return[done], ep_length[done] = 0.0, 0
+                obs, info = env.reset_some(done.nonzero()[:, 0], obs, info)
+                prev_phi = torch.where(done, potential(config.skill, info).cpu(), prev_phi)
+        if obs_rms is not None:  # from scratch: state statistics follow what the policy sees
+            obs_rms.update(buf_raw_state.reshape(-1, state_dim))
+            normalizer.state_mean.copy_(obs_rms.mean)
+            normalizer.state_std.copy_(obs_rms.var.sqrt().clamp_min(1e-2))
+
+        # ── GAE ──
+        with torch.no_grad():
+            next_value = critic(normed(inputs_of(obs)))[:, 0]
+        advantages, last = torch.zeros((T, N)), torch.zeros(N)
+        for t in reversed(range(T)):
+            next_nonterminal = 1.0 - (next_done if t == T - 1 else dones[t + 1])
+            next_values = next_value if t == T - 1 else values[t + 1]
+            delta = rewards[t] + config.gamma * next_values * next_nonterminal - values[t]
+            advantages[t] = last = delta + config.gamma * config.gae_lambda * next_nonterminal * last
+        returns = advantages + values
+
+        # ── clipped update ──
+        b = {k: v.reshape(T * N, *v.shape[2:]) for k, v in buf_inputs.items()}
+        b_actions, b_logprobs = actions.reshape(T * N, -1), logprobs.reshape(-1)
+        b_adv, b_returns, b_values = advantages.reshape(-1), returns.reshape(-1), values.reshape(-1)
+        warmup = global_step <= config.critic_warmup_steps
+        bc_coef = config.bc_coef
+        if config.bc_decay_steps:
+            bc_coef *= max(0.0, 1.0 - global_step / config.bc_decay_steps)
+        minibatch = config.batch_size // config.num_minibatches
+        stats = {k: [] for k in ("policy_loss", "value_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac", "imitation")}
+        for _ in range(config.update_epochs):
+            order = torch.randperm(T * N)
+            for start in range(0, T * N, minibatch):
+                mb = order[start : start + minibatch]
+                mb_inputs = _inputs_at(b, mb)
+                mean = actor(mb_inputs)
+                dist = Normal(mean, log_std.exp())
+                new_logprob, entropy = dist.log_prob(b_actions[mb]).sum(-1), dist.entropy().sum(-1)
+                log_ratio = new_logprob - b_logprobs[mb]
+                ratio = log_ratio.exp()
+                with torch.no_grad():
+                    stats["old_approx_kl"].append((-log_ratio).mean().item())
+                    stats["approx_kl"].append(((ratio - 1) - log_ratio).mean().item())
+                    stats["clipfrac"].append(((ratio - 1.0).abs() > config.clip_coef).float().mean().item())
+                adv = b_adv[mb]
+                if config.norm_adv and len(mb) > 1:
+                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                pg_loss = torch.max(-adv * ratio, -adv * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
+                new_value = critic(mb_inputs)[:, 0]
+                if config.clip_vloss:
+                    clipped = b_values[mb] + (new_value - b_values[mb]).clamp(-config.clip_coef, config.clip_coef)
+                    v_loss = 0.5 * torch.max((new_value - b_returns[mb]).pow(2), (clipped - b_returns[mb]).pow(2)).mean()
+                else:
+                    v_loss = 0.5 * (new_value - b_returns[mb]).pow(2).mean()
+                imitation = torch.zeros(())
+                if bc_actor is not None and bc_coef > 0:
+                    with torch.no_grad():
+                        teacher = bc_actor(mb_inputs)
+                    imitation = (mean - teacher).pow(2).mean()
+                loss = config.vf_coef * v_loss
+                if not warmup:  # critic warm-up: the BC actor stays as it is while the critic learns its values
+                    loss = loss + pg_loss - config.ent_coef * entropy.mean() + bc_coef * imitation
+                optimizer.zero_grad()
+                loss.backward()
+                nn.utils.clip_grad_norm_([*actor.parameters(), *critic.parameters(), log_std], config.max_grad_norm)
+                optimizer.step()
+                stats["policy_loss"].append(pg_loss.item())
+                stats["value_loss"].append(v_loss.item())
+                stats["entropy"].append(entropy.mean().item())
+                stats["imitation"].append(imitation.item())
+            if config.target_kl is not None and stats["approx_kl"][-1] > config.target_kl:
+                break
+
+        # ── log, checkpoint ──
+        var_y = b_returns.var()
+        explained = math.nan if var_y == 0 else float(1 - (b_returns - b_values).var() / var_y)
+        for name, vals in stats.items():
+            log.add(f"losses/{name}", sum(vals) / len(vals), global_step)
+        if math.isfinite(explained):
+            log.add("losses/explained_variance", explained, global_step)
+        log.add("charts/learning_rate", optimizer.param_groups[0]["lr"], global_step)
+        log.add("charts/action_std", float(log_std.exp().mean()), global_step)
+        log.add("charts/SPS", (global_step - window_start) / (time.perf_counter() - t0), global_step)
+        if recent:
+            log.add("charts/success_rate", sum(recent) / len(recent), global_step)
+        if bar is not None:
+            bar.update(global_step - window_start)
+            bar.set_postfix_str(f"episodes {episodes_done}, success {sum(recent)}/{len(recent)}")
+        if iteration % config.save_every == 0 or global_step >= config.total_steps:
+            episode_log.flush()
+            log.flush()
+            path = save()
+    episode_log.close()
+    log.close()
+    env.env.close()
+    if bar is not None:
+        bar.close()
+    return path

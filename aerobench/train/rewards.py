@@ -1,0 +1,106 @@
+"""PPO's rewards, defined once for every skill (spec, "PPO Training": task progress and success criteria, with
+penalties for undesirable actions and contacts).
+
+All terms read the env's per-step `info` (`AeroSkillEnv.evaluate()`), `(N,)` tensors:
+
+    r = w_progress * (phi_t - phi_{t-1})                     progress: the change of a per-skill potential phi
+      + w_success * success - w_fail * fail                  the skill's own success check; any latched failure
+      - w_tilt * max(0, tilt - tilt_soft)                    attitude beyond a soft limit (hard limit: fail_tilt)
+      - w_altitude * max(0, altitude_floor - altitude)       flying low (the hard limit ends the episode: fail_low)
+      - w_contact * min(nontarget_force / collision_force, 1) touching anything but the target
+      - w_action * |a|^2                                     large commands
+
+Potentials (higher is closer to done); each is a sum of signals the skill's evaluator already computes:
+
+| skill | phi |
+| --- | --- |
+| pick | -tcp_to_grasp_point + grasped + 2 lift / PICK_LIFT_M (lift only while grasped) |
+| place | -goal_distance + support contact + released + gripper clear |
+| nav | -nav_distance |
+| open | -tcp_to_handle + handle pinched + 2 articulation_progress |
+| close | -tcp_to_handle + handle pinched + 2 (1 - articulation_progress) |
+
+Using differences of a potential keeps the shaping from changing which policy is optimal (Ng et al., 1999).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from ..envs.checks import SafetyLimits
+from ..envs.skills.pick import PICK_LIFT_M
+
+SAFETY = SafetyLimits()
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    progress: float = 1.0
+    success: float = 10.0
+    fail: float = 5.0
+    tilt: float = 1.0  # per rad beyond `tilt_soft_rad`
+    tilt_soft_rad: float = math.radians(20.0)  # half of the hard limit (SafetyLimits.max_tilt_rad, 40 deg)
+    altitude: float = 1.0  # per m below `altitude_floor_m`
+    altitude_floor_m: float = SAFETY.min_altitude_m + 0.15  # a soft band above the hard floor
+    contact: float = 0.5
+    action: float = 0.01
+
+
+def _f(info: dict, key: str, skill: str) -> torch.Tensor:
+    if key not in info:
+        raise KeyError(f"the {skill} reward needs info[{key!r}], which the env did not report")
+    return info[key].float()
+
+
+def _pick(info, skill):
+    grasped = _f(info, "is_grasped", skill)
+    lift = _f(info, "lift_height", skill).clamp(0.0, PICK_LIFT_M) / PICK_LIFT_M
+    return -_f(info, "tcp_to_grasp_point", skill) + grasped + 2.0 * lift * grasped
+
+
+def _place(info, skill):
+    return (-_f(info, "goal_distance", skill) + _f(info, "is_support_contact", skill) + _f(info, "is_released", skill)
+            + _f(info, "is_gripper_clear", skill))
+
+
+def _nav(info, skill):
+    return -_f(info, "nav_distance", skill)
+
+
+def _open(info, skill):
+    return -_f(info, "tcp_to_handle", skill) + _f(info, "is_handle_pinched", skill) + 2.0 * _f(info, "articulation_progress", skill)
+
+
+def _close(info, skill):
+    progress = 1.0 - _f(info, "articulation_progress", skill)
+    return -_f(info, "tcp_to_handle", skill) + _f(info, "is_handle_pinched", skill) + 2.0 * progress
+
+
+POTENTIALS = {"pick": _pick, "place": _place, "nav": _nav, "open": _open, "close": _close}
+
+
+def potential(skill: str, info: dict) -> torch.Tensor:
+    """phi `(N,)` of the table above."""
+    if skill not in POTENTIALS:
+        raise ValueError(f"no PPO reward for skill {skill!r}; valid: {', '.join(POTENTIALS)}")
+    return POTENTIALS[skill](info, skill)
+
+
+def reward(skill: str, info: dict, prev_potential: torch.Tensor, action: torch.Tensor,
+           weights: RewardWeights = RewardWeights()) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
+    """(reward `(N,)`, this step's potential (pass it back next step), the terms by name for logging)."""
+    phi = potential(skill, info)
+    w = weights
+    terms = {
+        "progress": w.progress * (phi - prev_potential),
+        "success": w.success * _f(info, "success", skill),
+        "fail": -w.fail * _f(info, "fail", skill),
+        "tilt": -w.tilt * (_f(info, "tilt", skill) - w.tilt_soft_rad).clamp_min(0.0),
+        "altitude": -w.altitude * (w.altitude_floor_m - _f(info, "altitude", skill)).clamp_min(0.0),
+        "contact": -w.contact * (_f(info, "nontarget_contact_force", skill) / SAFETY.collision_force_n).clamp(max=1.0),
+        "action": -w.action * action.float().pow(2).sum(-1),
+    }
+    return sum(terms.values()), phi, terms

@@ -1,0 +1,162 @@
+"""`aerobench train bc` end to end on CPU, offline: an expert-made dataset (all outcomes kept) -> BC on the successful
+episodes only -> a checkpoint that `aerobench eval --policy bc` runs; determinism, exact resume, one-line errors;
+the image variant on a tiny camera dataset."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from aerobench.export import DatasetSink, read_jsonl
+from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
+from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+from aerobench.train.bc import BCConfig, train_bc
+from aerobench.train.common import read_scalars, torch_threads
+
+BIN = Path(sys.executable).parent
+
+
+def _run(cmd: list[str], cwd: Path, ok: bool = True) -> subprocess.CompletedProcess:
+    # one torch thread: on the shared 2-core machine more threads than free cores slow small torch ops many-fold
+    env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "WANDB_MODE": "disabled",
+           "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+    if ok:
+        assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return proc
+
+
+def _dataset(root: Path, episodes: int, max_steps: int, cameras: bool, seed: int = 0) -> Path:
+    spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=episodes, objects=("master_chef_can",),
+                       policy="expert", record_cameras=cameras, max_steps=max_steps, seed=seed)
+    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"})
+    with torch_threads(1):
+        RolloutRunner(spec, sink).run()
+    sink.close()
+    return root
+
+
+@pytest.fixture(scope="module")
+def state_dataset(tmp_path_factory) -> Path:
+    """Two expert Pick episodes cut at 200 steps, both kept (keep all). With seed 3 the expert needs 195 and 216
+    steps: the first succeeds, the second is truncated (the test checks that both kinds are there)."""
+    return _dataset(tmp_path_factory.mktemp("bc") / "ds", episodes=2, max_steps=200, cameras=False, seed=3)
+
+
+@pytest.fixture(scope="module")
+def trained(state_dataset, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("bc_run")
+    _run([str(BIN / "aerobench"), "train", "bc", "--dataset", str(state_dataset), "--out", str(out), "--steps", "300",
+          "--batch-size", "64", "--log-every", "25", "--no-progress"], cwd=out)
+    return out
+
+
+def _weights(checkpoint: Path) -> dict[str, torch.Tensor]:
+    return load_weights(resolve_checkpoint(checkpoint))
+
+
+def test_bc_trains_on_successful_episodes_only(state_dataset, trained):
+    rows = read_jsonl(state_dataset / "meta" / "aerobench_episodes.jsonl")
+    successes = [r for r in rows if r["outcome"] == "S"]
+    assert successes and len(successes) < len(rows), "the fixture must hold successful and unsuccessful episodes"
+    config = json.loads((trained / "checkpoint" / "config.json").read_text())
+    assert config["algorithm"] == "bc" and config["platform"] == "gripper"
+    assert config["data"]["episodes"] == len(successes)
+    assert config["data"]["frames"] == sum(r["steps"] for r in successes) < config["data"]["total_frames"]
+    # the 19-D proprio state, then the 13-D privileged task state (TCP, object pose, goal point)
+    assert config["model"]["state_dim"] == 19 + 13 and config["model"]["task_state"] and config["model"]["action_dim"] == 5
+    losses = [v for _, v in read_scalars(trained, "losses/bc")]
+    assert len(losses) == 300 // 25
+    assert losses[-1] < 0.5 * losses[0], f"BC loss did not fall: {losses}"
+    assert [s for s, _ in read_scalars(trained, "charts/SPS")] == list(range(25, 301, 25))
+
+
+def test_bc_checkpoint_evaluates(trained, tmp_path):
+    out = tmp_path / "eval"
+    proc = _run([str(BIN / "aerobench"), "eval", "--policy", "bc", "--checkpoint", str(trained), "--setting", "TidyHouse",
+                 "--skills", "pick", "--objects", "master_chef_can", "--episodes-per-object", "2", "--max-steps", "8",
+                 "--label", "bc-test", "--out", str(out)], cwd=tmp_path)
+    assert "bc-test" in proc.stdout
+    results = json.loads((out / "results.json").read_text())
+    assert results["policy"] == "bc" and results["provenance"]["checkpoint"] == str(trained.resolve())
+    (cell,) = results["cells"]
+    assert (cell["skill"], cell["object"], cell["n"]) == ("pick", "master_chef_can", 2)
+    records = read_jsonl(out / "records.jsonl")
+    assert [r["episode_index"] for r in records] == [0, 1] and all(r["policy"] == "bc" for r in records)
+    # no pick completes in 8 steps (it needs >= 10 held steps): every episode ends truncated or failed
+    assert cell["successes"] == 0 and all(r["outcome"] in ("T", "F") and r["steps"] <= 8 for r in records)
+    # the policy flew: the drone moved (a constant zero action would hover in place)
+    assert max(r["diagnostics"]["max_speed_mps"] for r in records) > 0.01
+
+
+def test_bc_is_deterministic_and_resumes_exactly(state_dataset, tmp_path):
+    def cfg(out, steps, seed=0):
+        return BCConfig(dataset=str(state_dataset), out=str(out), steps=steps, seed=seed, batch_size=32,
+                        log_every=5, save_every=10, hidden=(64, 64), progress=False)
+
+    a = train_bc(cfg(tmp_path / "a", 40))
+    b = train_bc(cfg(tmp_path / "b", 40))
+    c = train_bc(cfg(tmp_path / "c", 40, seed=1))
+    wa, wb, wc = _weights(a), _weights(b), _weights(c)
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    assert read_scalars(tmp_path / "a", "losses/bc") == read_scalars(tmp_path / "b", "losses/bc")
+    assert any(not torch.equal(wa[k], wc[k]) for k in wa), "another seed must give other weights"
+
+    train_bc(cfg(tmp_path / "r", 20))
+    log = tmp_path / "r" / "scalars.jsonl"
+    with open(log, "a") as f:  # an interrupted run logged past its last checkpoint: that part is redone, not kept
+        f.write(json.dumps({"step": 25, "tag": "losses/bc", "value": 123.0}) + "\n")
+    r = train_bc(cfg(tmp_path / "r", 40))
+    wr = _weights(r)
+    assert all(torch.equal(wa[k], wr[k]) for k in wa), "resuming 20 -> 40 must equal one run of 40 steps"
+    assert read_scalars(tmp_path / "r", "losses/bc") == read_scalars(tmp_path / "a", "losses/bc")
+    assert torch.load(r / "train_state.pt", weights_only=False)["step"] == 40
+    assert train_bc(cfg(tmp_path / "r", 40)) == r  # already finished: nothing to do
+
+
+def test_bc_errors_are_one_line(state_dataset, tmp_path):
+    with pytest.raises(ValueError, match="unknown outcomes.*valid: S, F, T, I"):
+        BCConfig(dataset=str(state_dataset), out=str(tmp_path), outcomes=("X",))
+    with pytest.raises(ValueError, match="must hold config.json, model.safetensors, normalization.json"):
+        resolve_checkpoint(tmp_path / "nothing", "bc")
+    with pytest.raises(ValueError, match="no LeRobot dataset"):
+        train_bc(BCConfig(dataset=str(tmp_path / "missing"), out=str(tmp_path / "o"), steps=1, progress=False))
+    with pytest.raises(ValueError, match="no episode with outcome I"):
+        train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "o"), steps=1, outcomes=("I",), progress=False))
+    run = tmp_path / "run"
+    train_bc(BCConfig(dataset=str(state_dataset), out=str(run), steps=2, hidden=(16,), progress=False))
+    with pytest.raises(ValueError, match="different config.*hidden"):
+        train_bc(BCConfig(dataset=str(state_dataset), out=str(run), steps=4, hidden=(32,), progress=False))
+    proc = _run([str(BIN / "aerobench"), "eval", "--policy", "ppo", "--checkpoint", str(run), "--setting", "TidyHouse",
+                 "--skills", "pick", "--episodes-per-object", "1", "--out", str(tmp_path / "e")], cwd=tmp_path, ok=False)
+    assert proc.returncode == 2 and "holds a bc policy; use --policy bc" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    proc = _run([str(BIN / "aerobench"), "train", "bc", "--dataset", str(state_dataset), "--out", str(tmp_path / "x"),
+                 "--outcomes", "Q"], cwd=tmp_path, ok=False)
+    assert proc.returncode == 2 and "unknown outcomes" in proc.stderr
+    assert set(CHECKPOINT_FILES) <= {p.name for p in (run / "checkpoint").iterdir()}
+
+
+def test_bc_image_variant_trains_and_evaluates(tmp_path):
+    # 12 steps cannot complete a pick: the episodes are truncations, so this test trains on outcome T (plumbing only)
+    data = _dataset(tmp_path / "cams", episodes=2, max_steps=12, cameras=True)
+    out = tmp_path / "run"
+    ckpt = train_bc(BCConfig(dataset=str(data), out=str(out), steps=4, batch_size=8, images=True, outcomes=("T",),
+                             image_size=32, hidden=(64,), log_every=2, progress=False))
+    config = json.loads((ckpt / "config.json").read_text())
+    assert config["model"]["cameras"] == ["drone_front", "drone_hand", "drone_own"] and config["data"]["frames"] == 24
+    assert any(k.startswith("actor.encoder.") for k in _weights(ckpt))
+    from aerobench.policies import policy_needs_images
+
+    assert policy_needs_images("bc", str(ckpt)) is True
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+
+    with torch_threads(1):
+        results = evaluate(EvalConfig(policy="bc", setting="TidyHouse", skills=("pick",), objects=("master_chef_can",),
+                                      episodes_per_object=1, checkpoint=str(ckpt), max_steps=4), tmp_path / "eval")
+    (cell,) = results["cells"]
+    assert cell["n"] == 1 and results["provenance"]["max_steps"] == 4

@@ -1,0 +1,170 @@
+"""`aerobench train ppo` on CPU: the reward on hand-built info dicts; a few windows on Pick (state only) that are
+deterministic, resume without lost or repeated windows, start from a BC checkpoint, and evaluate."""
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from aerobench.export import DatasetSink, read_jsonl
+from aerobench.policies.learned import load_weights
+from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+from aerobench.train.bc import BCConfig, train_bc
+from aerobench.train.common import read_scalars, torch_threads
+from aerobench.train.ppo import PPOConfig, train_ppo
+from aerobench.train.rewards import RewardWeights, potential, reward
+
+BIN = Path(sys.executable).parent
+
+
+def _info(n=2, **values) -> dict:
+    base = {"success": 0.0, "fail": 0.0, "tilt": 0.0, "altitude": 1.5, "nontarget_contact_force": 0.0,
+            "tcp_to_grasp_point": 0.5, "is_grasped": 0.0, "lift_height": 0.0}
+    base.update(values)
+    return {k: torch.as_tensor(v, dtype=torch.float32).expand(n).clone() if not torch.is_tensor(v) else v
+            for k, v in base.items()}
+
+
+def test_reward_terms_on_hand_built_infos():
+    w, zero = RewardWeights(), torch.zeros(2, 5)
+    far, near = _info(tcp_to_grasp_point=0.5), _info(tcp_to_grasp_point=0.3)
+    r, phi, terms = reward("pick", near, potential("pick", far), zero)
+    assert torch.allclose(terms["progress"], torch.full((2,), 0.2)) and torch.allclose(r, terms["progress"])
+    assert torch.allclose(phi, torch.full((2,), -0.3))
+    # moving away is punished just as much
+    r_back, _, _ = reward("pick", far, potential("pick", near), zero)
+    assert torch.allclose(r_back, -r)
+    # grasped and lifted by the full threshold: +1 + 2 on the potential
+    lifted = _info(tcp_to_grasp_point=0.0, is_grasped=1.0, lift_height=0.5)
+    assert torch.allclose(potential("pick", lifted), torch.full((2,), 3.0))
+    # a lift without a grasp (the object knocked upwards) earns nothing
+    assert torch.allclose(potential("pick", _info(tcp_to_grasp_point=0.0, lift_height=0.5)), torch.zeros(2))
+    same = potential("pick", near)
+    _, _, t = reward("pick", _info(tcp_to_grasp_point=0.3, success=torch.tensor([1.0, 0.0])), same, zero)
+    assert t["success"].tolist() == [w.success, 0.0]
+    _, _, t = reward("pick", _info(tcp_to_grasp_point=0.3, fail=torch.tensor([0.0, 1.0])), same, zero)
+    assert t["fail"].tolist() == [0.0, -w.fail]
+    _, _, t = reward("pick", _info(tcp_to_grasp_point=0.3, tilt=torch.tensor([w.tilt_soft_rad - 0.1, w.tilt_soft_rad + 0.1])), same, zero)
+    assert t["tilt"][0] == 0.0 and math.isclose(float(t["tilt"][1]), -0.1 * w.tilt, rel_tol=1e-4)
+    _, _, t = reward("pick", _info(tcp_to_grasp_point=0.3, altitude=torch.tensor([w.altitude_floor_m + 0.2, w.altitude_floor_m - 0.1])), same, zero)
+    assert t["altitude"][0] == 0.0 and math.isclose(float(t["altitude"][1]), -0.1 * w.altitude, rel_tol=1e-4)
+    _, _, t = reward("pick", _info(tcp_to_grasp_point=0.3, nontarget_contact_force=torch.tensor([0.5, 50.0])), same, zero)
+    assert t["contact"].tolist() == pytest.approx([-0.5 * w.contact, -w.contact])  # capped at the collision force
+    _, _, t = reward("pick", near, same, torch.tensor([[0.0] * 5, [1.0] * 5]))
+    assert t["action"].tolist() == pytest.approx([0.0, -5 * w.action])
+    nav = {"nav_distance": torch.tensor([2.0])}
+    assert potential("nav", nav).tolist() == [-2.0]
+    close = {"tcp_to_handle": torch.tensor([0.0]), "is_handle_pinched": torch.tensor([1.0]),
+             "articulation_progress": torch.tensor([0.25])}
+    assert potential("close", close).tolist() == [2.5] and potential("open", close).tolist() == [1.5]
+    with pytest.raises(ValueError, match="valid: pick, place, nav, open, close"):
+        potential("fly", near)
+    with pytest.raises(KeyError, match="goal_distance"):
+        potential("place", near)
+
+
+def _config(out: Path, total: int, **kw) -> PPOConfig:
+    return PPOConfig(setting="TidyHouse", skill="pick", objects=("master_chef_can",), out=str(out), total_steps=total,
+                     seed=kw.pop("seed", 0), max_episode_steps=24, update_epochs=2, hidden=(32, 32), save_every=1,
+                     progress=False, **kw)
+
+
+def _state(run: Path) -> dict:
+    return torch.load(run / "checkpoint" / "train_state.pt", weights_only=False)
+
+
+def test_ppo_is_deterministic_and_resumes(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    train_ppo(_config(a, 64))
+    train_ppo(_config(b, 64))
+    wa, wb = load_weights(a / "checkpoint"), load_weights(b / "checkpoint")
+    assert set(wa) >= {"log_std", "critic.mlp.0.weight", "actor.mlp.0.weight"}
+    assert all(torch.equal(wa[k], wb[k]) for k in wa), "same seed must give the same weights"
+    assert read_scalars(a, "losses/value_loss") == read_scalars(b, "losses/value_loss")
+    first = read_jsonl(a / "train_episodes.jsonl")
+    assert first == read_jsonl(b / "train_episodes.jsonl")
+    assert len(first) >= 2 and all(r["length"] <= 24 for r in first)  # 24-step episodes end inside a 64-step window
+    assert set(first[0]) == {"global_step", "episode", "success", "return", "length"}
+
+    # an interrupted run logged a line after its checkpoint: the resumed run redoes that window instead of keeping it
+    with open(b / "train_episodes.jsonl", "a") as f:
+        f.write(json.dumps({"global_step": 70, "episode": 99, "success": True, "return": 0.0, "length": 1}) + "\n")
+    train_ppo(_config(b, 128))
+    state = _state(b)
+    assert (state["global_step"], state["iteration"]) == (128, 2)
+    episodes = read_jsonl(b / "train_episodes.jsonl")
+    assert episodes[: len(first)] == first
+    assert [r["episode"] for r in episodes] == list(range(1, len(episodes) + 1)) and state["episodes"] == len(episodes)
+    assert all(64 < r["global_step"] <= 128 for r in episodes[len(first):]) and len(episodes) > len(first)
+    assert [s for s, _ in read_scalars(b, "losses/policy_loss")] == [64, 128]
+    assert [s for s, _ in read_scalars(b, "charts/SPS")] == [64, 128]
+    wb2 = load_weights(b / "checkpoint")
+    assert any(not torch.equal(wb[k], wb2[k]) for k in wb), "the resumed window must have trained"
+
+    c = tmp_path / "c"
+    train_ppo(_config(c, 64, seed=1))
+    wc = load_weights(c / "checkpoint")
+    assert any(not torch.equal(wa[k], wc[k]) for k in wa), "another seed must give other weights"
+
+
+@pytest.fixture(scope="module")
+def bc_checkpoint(tmp_path_factory) -> Path:
+    """A small BC actor (from one 20-step expert episode; it is truncated, so it trains on outcome T)."""
+    root = tmp_path_factory.mktemp("ppo_bc")
+    spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=1, objects=("master_chef_can",),
+                       policy="expert", record_cameras=False, max_steps=20)
+    sink = DatasetSink(root / "ds", {**spec.as_dict(), "keep": "all"})
+    with torch_threads(1):
+        RolloutRunner(spec, sink).run()
+    sink.close()
+    return train_bc(BCConfig(dataset=str(root / "ds"), out=str(root / "bc"), steps=20, outcomes=("T",),
+                             hidden=(32, 32), batch_size=16, progress=False))
+
+
+def test_ppo_from_bc_keeps_the_actor_during_critic_warmup_and_evaluates(bc_checkpoint, tmp_path):
+    run = tmp_path / "ppo"
+    ckpt = train_ppo(_config(run, 64, init_bc=str(bc_checkpoint), critic_warmup_steps=64, bc_coef=0.1))
+    bc, ppo = load_weights(bc_checkpoint), load_weights(ckpt)
+    actor_keys = [k for k in bc if k.startswith("actor.")]
+    assert actor_keys and all(torch.equal(bc[k], ppo[k]) for k in actor_keys), "the actor starts as BC's"
+    assert json.loads((ckpt / "normalization.json").read_text()) == json.loads(
+        (bc_checkpoint / "normalization.json").read_text())
+    critic_lr = read_scalars(run, "losses/value_loss")
+    assert len(critic_lr) == 1 and math.isfinite(critic_lr[0][1])
+    config = json.loads((ckpt / "config.json").read_text())
+    assert config["algorithm"] == "ppo" and config["init_bc"] == str(bc_checkpoint.resolve())
+
+    out = tmp_path / "eval"
+    env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(BIN / "aerobench"), "eval", "--policy", "ppo", "--checkpoint", str(run), "--setting",
+                           "TidyHouse", "--skills", "pick", "--objects", "master_chef_can", "--episodes-per-object", "2",
+                           "--max-steps", "8", "--out", str(out)], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    results = json.loads((out / "results.json").read_text())
+    (cell,) = results["cells"]
+    assert results["policy"] == "ppo" and cell["n"] == 2 and sum(cell["outcomes"].values()) == 2
+    assert all(r["steps"] <= 8 and r["policy"] == "ppo" for r in read_jsonl(out / "records.jsonl"))
+
+
+def test_ppo_config_errors_are_one_line(tmp_path):
+    with pytest.raises(ValueError, match="unknown skill 'fly'; PPO trains one of: pick, place, nav, open, close"):
+        PPOConfig(setting="TidyHouse", skill="fly", out=str(tmp_path))
+    with pytest.raises(ValueError, match="physx_cpu runs one env per process"):
+        PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), num_envs=4)
+    with pytest.raises(ValueError, match="add --init-bc DIR"):
+        PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), bc_coef=0.5)
+    with pytest.raises(ValueError, match="no aerobench bc/ppo checkpoint at .*must hold config.json"):
+        PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), init_bc=str(tmp_path / "none"))
+    with pytest.raises(ValueError, match="unknown controller 'x'; valid controllers: payload-aware, nominal"):
+        PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), controller="x")
+    with pytest.raises(ValueError, match="--num-minibatches"):
+        PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), num_minibatches=5)
+    env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(BIN / "aerobench"), "train", "ppo", "--setting", "Nowhere", "--skill", "pick", "--out",
+                           str(tmp_path / "x")], env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "TidyHouse" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
