@@ -372,7 +372,8 @@ def _run_dataset_filter(args) -> int:
 def _add_eval(sub) -> None:
     p = sub.add_parser("eval", help="evaluate a policy per skill x object; writes records.jsonl and results.json")
     p.add_argument("--policy", required=True, help="a registered policy: expert, random, bc, ppo, act, diffusion, pi0, pi05")
-    p.add_argument("--checkpoint", default=None, help="checkpoint folder of a trained policy")
+    p.add_argument("--checkpoint", default=None,
+                   help="checkpoint folder of a trained policy, or one per skill: pick=DIR,place=DIR")
     p.add_argument("--setting", required=True, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
     p.add_argument("--skills", type=_csv, default=("pick", "place"), help="comma-separated skills, or one chain")
     p.add_argument("--chain", type=_csv, default=None,

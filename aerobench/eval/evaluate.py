@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..envs.tasks import get_setting
-from ..rollout.chained import resolve_chain, split_checkpoints
+from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records
 from ..rollout.runner import Progress, RolloutRunner, RolloutSpec
@@ -44,12 +44,15 @@ class EvalConfig:
         """Whether the policy (every stage checkpoint of a chain) reads cameras; also validates name and checkpoint."""
         from ..policies import policy_needs_images
 
-        checkpoints = split_checkpoints(self.checkpoint).values() if self.chain else [self.checkpoint]
-        return any(policy_needs_images(self.policy, c) for c in checkpoints)
+        return any(policy_needs_images(self.policy, c) for c in split_checkpoints(self.checkpoint).values())
 
     def rollout_spec(self, record_cameras: bool) -> RolloutSpec:
         setting = get_setting(self.setting)
         skills = (resolve_chain(self.setting, self.chain),) if self.chain else tuple(self.skills)
+        checkpoints = split_checkpoints(self.checkpoint)
+        learned = [s for s in stage_skills(self.chain) if s != "nav"] if self.chain else skills
+        for skill in learned if self.policy not in ("expert", "random") else ():
+            checkpoint_for(checkpoints, skill)  # a per-skill mapping names every skill the policy acts
         uses_objects = any(s not in ("nav", "open", "close") for s in skills)
         n_objects = len(self.objects or setting.objects) if uses_objects else 1
         if not (isinstance(self.episodes_per_object, int) and self.episodes_per_object > 0):

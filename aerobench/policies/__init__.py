@@ -1,8 +1,9 @@
 """Policies by name behind one batched interface: `policy.reset(env_idx)`, `policy.act(obs) -> (N, A)` actions.
 
-`make_policy(name, env, checkpoint=None)` builds one for a (possibly batched) aerobench env. Registered now:
-`expert` (the privileged hybrid expert, `aerobench.expert`) and `random`. Learned policies (BC, PPO and the LeRobot
-policies ACT, Diffusion, pi0, pi0.5) register here too as they land.
+`make_policy(name, env, checkpoint=None)` builds one for a (possibly batched) aerobench env: `expert` (the
+privileged hybrid expert, `aerobench.expert`), `random`, `bc` and `ppo` (`learned`: checkpoints of `aerobench train`)
+and the LeRobot policies `act`, `diffusion`, `pi0`, `pi05` (`lerobot_policies`; tiny pi variants in `pi_tiny`, made
+with `aerobench pi-init`).
 """
 
 from .registry import POLICIES, Policy, make_policy, policy_needs_images, register_policy

@@ -57,7 +57,8 @@ def checkpoint_for(checkpoints: dict[str, str | None], skill: str) -> str | None
         return checkpoints[skill]
     if "*" in checkpoints:
         return checkpoints["*"]
-    raise ValueError(f"--checkpoint names no folder for the {skill} stage (have: {', '.join(checkpoints)})")
+    raise ValueError(f"--checkpoint names no folder for {skill} (it has {', '.join(checkpoints)}); "
+                     f"add {skill}=DIR or give one folder for every skill")
 
 
 class ChainedPolicy:

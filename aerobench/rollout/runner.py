@@ -22,7 +22,7 @@ from ..annotation import EpisodeRecord, categorize, cut_segments
 from ..envs.checker import SKILL_ENV_IDS
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
-from .chained import ChainedPolicy, ChainMonitor, mark_grasp_lost
+from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, mark_grasp_lost, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 
 SEED_STRIDE = 1_000_003  # episode seed = base seed * stride + episode index: distinct streams per base seed
@@ -212,7 +212,8 @@ class RolloutRunner:
             policy = ChainedPolicy(base, self.spec.policy, self.spec.checkpoint)
             monitor = ChainMonitor([ev.skill for ev in base.evaluators], n)
         else:
-            policy, monitor = make_policy(self.spec.policy, base, checkpoint=self.spec.checkpoint), None
+            checkpoint = checkpoint_for(split_checkpoints(self.spec.checkpoint), skill)  # one, or one per skill
+            policy, monitor = make_policy(self.spec.policy, base, checkpoint=checkpoint), None
         policy.reset(torch.arange(n, device=base.device))
         max_steps = episode_limit(env)
         evaluators = [ev.skill for ev in base.evaluators]

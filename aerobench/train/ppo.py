@@ -462,7 +462,7 @@ def _train_ppo(config: PPOConfig) -> Path:
         if math.isfinite(explained):
             log.add("losses/explained_variance", explained, global_step)
         log.add("charts/learning_rate", optimizer.param_groups[0]["lr"], global_step)
-        log.add("charts/action_std", float(log_std.exp().mean()), global_step)
+        log.add("charts/action_std", float(log_std.detach().exp().mean()), global_step)
         log.add("charts/SPS", (global_step - window_start) / (time.perf_counter() - t0), global_step)
         if recent:
             log.add("charts/success_rate", sum(recent) / len(recent), global_step)

@@ -160,3 +160,16 @@ def test_bc_image_variant_trains_and_evaluates(tmp_path):
                                       episodes_per_object=1, checkpoint=str(ckpt), max_steps=4), tmp_path / "eval")
     (cell,) = results["cells"]
     assert cell["n"] == 1 and results["provenance"]["max_steps"] == 4
+
+
+def test_one_checkpoint_per_skill_and_a_missing_one_is_named(trained, tmp_path):
+    """`--checkpoint pick=A,place=B` gives each skill its own policy (PPO trains one per skill)."""
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+
+    config = EvalConfig(policy="bc", setting="TidyHouse", skills=("pick", "place"), objects=("master_chef_can",),
+                        episodes_per_object=1, checkpoint=f"pick={trained},place={trained}", max_steps=4)
+    results = evaluate(config, tmp_path / "eval")
+    assert sorted(c["skill"] for c in results["cells"]) == ["pick", "place"]
+    assert results["provenance"]["checkpoint"] == f"pick={trained.resolve()},place={trained.resolve()}"
+    with pytest.raises(ValueError, match="names no folder for place"):
+        EvalConfig(policy="bc", setting="TidyHouse", skills=("pick", "place"), checkpoint=f"pick={trained}").rollout_spec(False)

@@ -1,0 +1,375 @@
+"""The spec's learning-efficiency figure (Sec. "Evaluation of Data Generation Strategies", Fig. learning_curves):
+BC held-out success after training on the successful expert rollouts of 1, 2, 4, 8 collection rounds, against PPO's
+training success from scratch (400-episode moving average), on a log interaction axis, with the expert's held-out
+success as a dotted line.
+
+BC's x is demonstration transitions (frames of the successful expert episodes it trained on); PPO's x is environment
+interactions. Every held-out evaluation uses the same seeded starts (`HELD_OUT_SEED`), disjoint from the collection
+rounds (round k is generated with seed k). Writes `learning_curves.json` and `learning_curves.png` under `--out`.
+
+The defaults are a small CPU budget (minutes: one object class, rounds 1,2 of 8 rollouts, 2000 BC steps, 2000 PPO
+interactions, 4 held-out episodes); `--spec-scale` sets the spec's (rounds 1,2,4,8 of 256 rollouts, every object of
+the setting, millions of PPO interactions: days on a CPU). Rerunning the same command continues: each
+round's dataset, each checkpoint and each evaluation already in `--out` is reused.
+
+    python bench/learning_curves.py [--rounds 1,2] [--rollouts-per-round 8] [--ppo-steps 2000] [--out DIR]
+    python bench/learning_curves.py --spec-scale --out outputs/bench/learning_curves_spec
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import os
+import shutil
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+logging.getLogger("mani_skill").setLevel(logging.ERROR)
+
+import numpy as np  # noqa: E402
+
+HELD_OUT_SEED = 4_000  # evaluation starts, far from the collection rounds (seeds 1..8); seed * 1000003 + i < 2**32
+SKILL = "pick"  # the spec's learning curves are on Pick
+DONE_FILE = "bench_done.json"
+EPISODES_FILE = "aerobench_episodes.jsonl"  # the export's per-episode annotation, in meta/  # written after a training run returned: its presence means "reuse"
+
+# The spec's text next to the figure ("Evaluation of Data Generation Strategies").
+SPEC = {
+    "bc": "On Pick, BC approaches expert success with only 67-81k demonstration transitions",
+    "ppo": "PPO requires millions of interactions and remains below the expert in held-out evaluation",
+    "protocol": "1, 2, 4 and 8 collection rounds of 256 rollouts; PPO 400-episode moving average; one seed per method",
+}
+
+
+@dataclass(frozen=True)
+class Budget:
+    setting: str = "TidyHouse"
+    objects: tuple[str, ...] | None = None  # None: every object of the setting
+    rounds: tuple[int, ...] = (1, 2)
+    rollouts_per_round: int = 8
+    bc_steps: int = 2000
+    ppo_steps: int = 2000
+    eval_per_object: int = 4
+    window: int = 400
+    seed: int = 0
+    max_steps: int | None = None  # truncate held-out and PPO training episodes (smoke tests; collection runs in full)
+
+    def __post_init__(self):
+        if not self.rounds or any(r < 1 for r in self.rounds) or list(self.rounds) != sorted(set(self.rounds)):
+            raise ValueError(f"--rounds must be increasing positive integers like 1,2,4,8; got {self.rounds}")
+        for name in ("rollouts_per_round", "bc_steps", "ppo_steps", "eval_per_object", "window"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"--{name.replace('_', '-')} must be at least 1, got {getattr(self, name)}")
+
+
+SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
+SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
+
+
+# ── collection ───────────────────────────────────────────────────────────────────────────────────────────────────
+def collect_round(budget: Budget, k: int, root: Path) -> dict:
+    """Collection round k: `rollouts_per_round` state-only expert Pick rollouts (seed k), successes kept."""
+    from aerobench.export import DatasetSink
+    from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+
+    spec = RolloutSpec(setting=budget.setting, skills=(SKILL,), episodes=budget.rollouts_per_round, objects=budget.objects,
+                       seed=k, policy="expert", record_cameras=False)
+    sink = DatasetSink(root, {**spec.as_dict(), "keep": "success"}, keep=lambda r: r.outcome == "S")
+    started = time.monotonic()
+    progress = RolloutRunner(spec, sink).run()
+    sink.close()
+    elapsed = time.monotonic() - started
+    records = [json.loads(line) for line in (root / ".aerobench" / "records.jsonl").read_text().splitlines() if line]
+    return {
+        "round": k, "episodes": len(records), "successes": sum(r["outcome"] == "S" for r in records),
+        "transitions": transitions(root), "run_now": progress.run_done, "run_s": elapsed,
+    }
+
+
+def transitions(root: Path) -> int:
+    """Frames in the LeRobot dataset at root (0 when no episode was kept)."""
+    info = root / "meta" / "info.json"
+    return int(json.loads(info.read_text())["total_frames"]) if info.is_file() else 0
+
+
+def cumulative_dataset(rounds: list[Path], dst: Path) -> Path | None:
+    """One dataset with the kept episodes of `rounds`, in order, with the annotation BC selects episodes by
+    (`meta/aerobench_episodes.jsonl`, renumbered). Built once into a temporary folder, then renamed into place."""
+    from lerobot.datasets.aggregate import aggregate_datasets
+
+    from aerobench.export.sink import read_jsonl, write_jsonl
+
+    sources = [r for r in rounds if (r / "meta" / "info.json").is_file()]
+    if not sources:
+        return None
+    if len(sources) == 1:
+        return sources[0]
+    if (dst / DONE_FILE).is_file():
+        return dst
+    work = dst.with_name(dst.name + ".tmp")
+    shutil.rmtree(work, ignore_errors=True)
+    aggregate_datasets(["local/aerobench-round"] * len(sources), f"local/{dst.name}", roots=sources, aggr_root=work)
+    rows = [row for src in sources for row in sorted(read_jsonl(src / "meta" / EPISODES_FILE),
+                                                     key=lambda r: r["dataset_episode_index"])]
+    write_jsonl(work / "meta" / EPISODES_FILE, [{**row, "dataset_episode_index": i} for i, row in enumerate(rows)])
+    (work / DONE_FILE).write_text(json.dumps({"sources": [str(s) for s in sources]}) + "\n")
+    shutil.rmtree(dst, ignore_errors=True)
+    work.rename(dst)
+    return dst
+
+
+# ── training (the trainers live in aerobench.train) ──────────────────────────────────────────────────────────────
+def _done(out: Path) -> Path | None:
+    marker = out / DONE_FILE
+    return Path(json.loads(marker.read_text())["checkpoint"]) if marker.is_file() else None
+
+
+def _mark_done(out: Path, checkpoint: Path, seconds: float) -> None:
+    (out / DONE_FILE).write_text(json.dumps({"checkpoint": str(checkpoint), "train_s": seconds}) + "\n")
+
+
+def train_bc_checkpoint(dataset: Path, out: Path, steps: int, seed: int) -> tuple[Path, float]:
+    """A state-only BC checkpoint trained on `dataset` (reused when `out` holds a finished one)."""
+    if (ckpt := _done(out)) is not None:
+        return ckpt, json.loads((out / DONE_FILE).read_text())["train_s"]
+    from aerobench.train.bc import BCConfig, train_bc
+
+    started = time.monotonic()  # an interrupted run resumes from its last checkpoint (the time is this run's)
+    ckpt = Path(train_bc(BCConfig(dataset=str(dataset), out=str(out), steps=steps, seed=seed, images=False,
+                                  progress=False)))
+    elapsed = time.monotonic() - started
+    _mark_done(out, ckpt, elapsed)
+    return ckpt, elapsed
+
+
+def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
+    """PPO from scratch on the setting's Pick (reused when `out` holds a finished run)."""
+    if (ckpt := _done(out)) is not None:
+        return ckpt, json.loads((out / DONE_FILE).read_text())["train_s"]
+    from aerobench.train.ppo import PPOConfig, train_ppo
+
+    started = time.monotonic()  # an interrupted run resumes from its last checkpoint (the time is this run's)
+    ckpt = Path(train_ppo(PPOConfig(setting=budget.setting, skill=SKILL, objects=budget.objects, out=str(out),
+                                    total_steps=budget.ppo_steps, seed=budget.seed, init_bc=None,
+                                    max_episode_steps=budget.max_steps, progress=False)))
+    elapsed = time.monotonic() - started
+    _mark_done(out, ckpt, elapsed)
+    return ckpt, elapsed
+
+
+def ppo_training_episodes(out: Path) -> list[dict]:
+    """PPO's `train_episodes.jsonl` rows (global_step, episode, success, return, length), in order."""
+    path = out / "train_episodes.jsonl"
+    if not path.is_file():
+        raise ValueError(f"{path} is missing: the PPO trainer writes one line per finished training episode there")
+    rows = []
+    for line in path.read_text().splitlines():
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            break  # a torn last line
+    return sorted(rows, key=lambda r: r["global_step"])
+
+
+def moving_average(values: np.ndarray, window: int) -> np.ndarray:
+    """Trailing mean over the last `window` values (fewer at the start)."""
+    values = np.asarray(values, float)
+    csum = np.concatenate([[0.0], np.cumsum(values)])
+    idx = np.arange(1, len(values) + 1)
+    lo = np.maximum(idx - window, 0)
+    return (csum[idx] - csum[lo]) / (idx - lo)
+
+
+# ── held-out evaluation ──────────────────────────────────────────────────────────────────────────────────────────
+def held_out(budget: Budget, policy: str, checkpoint: Path | None, out: Path) -> dict:
+    """Pooled held-out Pick success of `policy` on the same seeded starts for every policy (resumes in `out`)."""
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+    from aerobench.eval.stats import wilson_interval
+
+    config = EvalConfig(policy=policy, setting=budget.setting, skills=(SKILL,), objects=budget.objects,
+                        episodes_per_object=budget.eval_per_object, checkpoint=str(checkpoint) if checkpoint else None,
+                        seed=HELD_OUT_SEED, max_steps=budget.max_steps)
+    started = time.monotonic()
+    results = evaluate(config, out)
+    n = sum(c["n"] for c in results["cells"])
+    k = sum(c["successes"] for c in results["cells"])
+    lo, hi = wilson_interval(k, n)
+    return {"success": k / n if n else 0.0, "successes": k, "n": n, "wilson95": [lo, hi],
+            "eval_s": time.monotonic() - started, "results": str(out / "results.json")}
+
+
+# ── the experiment ───────────────────────────────────────────────────────────────────────────────────────────────
+def run(budget: Budget, out: Path) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    tag = f"n{budget.rollouts_per_round}" + (f"_max{budget.max_steps}" if budget.max_steps else "")
+    summary: dict = {"budget": asdict(budget), "held_out_seed": HELD_OUT_SEED, "skill": SKILL, "spec": SPEC}
+
+    print(f"expert held-out ({budget.eval_per_object} per object) ...", flush=True)
+    summary["expert"] = held_out(budget, "expert", None, out / "eval" / f"expert_{tag}")
+    print(f"  expert held-out success {summary['expert']['successes']}/{summary['expert']['n']}", flush=True)
+
+    rounds, round_roots = [], []
+    for k in range(1, max(budget.rounds) + 1):
+        root = out / "data" / tag / f"round_{k:02d}"
+        print(f"collection round {k}: {budget.rollouts_per_round} expert rollouts -> {root}", flush=True)
+        rounds.append(collect_round(budget, k, root))
+        round_roots.append(root)
+        r = rounds[-1]
+        ran = f"{r['run_now']} run now at {60 * r['run_now'] / r['run_s']:.1f} episodes/min" if r["run_now"] else "reused"
+        print(f"  {r['successes']}/{r['episodes']} successful, {r['transitions']} transitions; {ran}", flush=True)
+    summary["rounds"] = rounds
+
+    summary["bc"] = []
+    for n_rounds in budget.rounds:
+        dataset = cumulative_dataset(round_roots[:n_rounds], out / "data" / tag / f"rounds_1-{n_rounds}")
+        row: dict = {"rounds": n_rounds, "rollouts": n_rounds * budget.rollouts_per_round,
+                     "demos": sum(r["successes"] for r in rounds[:n_rounds]),
+                     "transitions": sum(r["transitions"] for r in rounds[:n_rounds])}
+        if dataset is None:
+            print(f"BC after {n_rounds} round(s): no successful expert rollout to train on", flush=True)
+            row.update(held_out=None, train_s=None, checkpoint=None)
+        else:
+            ckpt_dir = out / "bc" / f"{tag}_rounds{n_rounds}_steps{budget.bc_steps}"
+            ckpt, train_s = train_bc_checkpoint(dataset, ckpt_dir, budget.bc_steps, budget.seed)
+            row.update(checkpoint=str(ckpt), train_s=train_s,
+                       held_out=held_out(budget, "bc", ckpt, out / "eval" / f"{ckpt_dir.name}"))
+            print(f"BC after {n_rounds} round(s) ({row['transitions']} transitions, {budget.bc_steps} steps in "
+                  f"{train_s:.0f} s): held-out {row['held_out']['successes']}/{row['held_out']['n']}", flush=True)
+        summary["bc"].append(row)
+
+    ppo_dir = out / "ppo" / (f"steps{budget.ppo_steps}_seed{budget.seed}" + (f"_max{budget.max_steps}" if budget.max_steps else ""))
+    print(f"PPO from scratch, {budget.ppo_steps} interactions -> {ppo_dir}", flush=True)
+    ckpt, train_s = train_ppo_checkpoint(budget, ppo_dir)
+    episodes = ppo_training_episodes(ppo_dir)
+    steps = np.array([e["global_step"] for e in episodes], float)
+    success = np.array([float(bool(e["success"])) for e in episodes])
+    ma = moving_average(success, budget.window)
+    keep = np.unique(np.linspace(0, len(ma) - 1, min(len(ma), 1000)).astype(int)) if len(ma) else np.zeros(0, int)
+    summary["ppo"] = {
+        "checkpoint": str(ckpt), "train_s": train_s, "episodes": len(episodes), "successes": int(success.sum()),
+        "interactions": int(steps[-1]) if len(steps) else 0,
+        "interactions_per_s": float(steps[-1] / train_s) if len(steps) and train_s > 0 else None,
+        "final_moving_average": float(ma[-1]) if len(ma) else None,
+        "curve": {"global_step": steps[keep].astype(int).tolist(), "success_moving_average": ma[keep].tolist()},
+        "held_out": held_out(budget, "ppo", ckpt, out / "eval" / f"ppo_{ppo_dir.name}"),
+    }
+    p = summary["ppo"]
+    print(f"  PPO: {p['episodes']} training episodes, {p['successes']} successful, final moving average "
+          f"{p['final_moving_average']}; {p['interactions_per_s'] or 0:.0f} interactions/s; held-out "
+          f"{p['held_out']['successes']}/{p['held_out']['n']}", flush=True)
+    return summary
+
+
+def plot(summary: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    bc = [r for r in summary["bc"] if r["held_out"] and r["transitions"] > 0]
+    if bc:
+        x = np.array([r["transitions"] for r in bc], float)
+        y = np.array([r["held_out"]["success"] for r in bc])
+        err = np.array([[r["held_out"]["success"] - r["held_out"]["wilson95"][0],
+                         r["held_out"]["wilson95"][1] - r["held_out"]["success"]] for r in bc]).T.clip(0)
+        ax.errorbar(x, y, yerr=err, fmt="o-", color="C0", capsize=3, label="BC held-out (demonstration transitions)")
+        for r, xi, yi in zip(bc, x, y):
+            ax.annotate(f"{r['rounds']}r", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    curve = summary["ppo"]["curve"]
+    if curve["global_step"]:
+        ax.plot(np.maximum(curve["global_step"], 1), curve["success_moving_average"], color="C1",
+                label=f"PPO training success ({summary['budget']['window']}-episode moving average)")
+        h = summary["ppo"]["held_out"]
+        ax.plot([max(summary["ppo"]["interactions"], 1)], [h["success"]], "s", color="C1", mfc="none",
+                label="PPO held-out")
+    ax.axhline(summary["expert"]["success"], color="k", ls=":", label="expert held-out")
+    ax.set_xscale("log")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xlabel("demonstration transitions (BC) / environment interactions (PPO)")
+    ax.set_ylabel(f"{summary['budget']['setting']} Pick success")
+    b = summary["budget"]
+    ax.set_title(f"{b['rollouts_per_round']} rollouts/round, rounds {','.join(map(str, b['rounds']))}, "
+                 f"BC {b['bc_steps']} steps, PPO {b['ppo_steps']} steps", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _ints(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers like 1,2,4,8; got {text!r}") from None
+
+
+def _csv(text: str) -> tuple[str, ...]:
+    return tuple(x.strip() for x in text.split(",") if x.strip())
+
+
+def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--setting", default="TidyHouse")
+    parser.add_argument("--objects", type=_csv, default=None,
+                        help=f"comma-separated (default: {','.join(SMALL_OBJECTS)}; with --spec-scale every object)")
+    parser.add_argument("--rounds", type=_ints, default=None, help="BC after this many collection rounds (default 1,2)")
+    parser.add_argument("--rollouts-per-round", type=int, default=None, help="expert rollouts per round (default 8)")
+    parser.add_argument("--bc-steps", type=int, default=None, help="BC gradient steps per checkpoint (default 2000)")
+    parser.add_argument("--ppo-steps", type=int, default=None, help="PPO environment interactions (default 2000)")
+    parser.add_argument("--eval-per-object", type=int, default=None, help="held-out episodes per object (default 4)")
+    parser.add_argument("--window", type=int, default=400, help="PPO moving-average window in episodes")
+    parser.add_argument("--seed", type=int, default=0, help="training seed (BC and PPO)")
+    parser.add_argument("--max-steps", type=int, default=None, help="truncate held-out and PPO training episodes (smoke tests)")
+    parser.add_argument("--spec-scale", action="store_true",
+                        help="the spec's budget: rounds 1,2,4,8 of 256 rollouts, 20k BC steps, 5M PPO interactions, "
+                             "50 held-out episodes per object (explicit flags still win)")
+    parser.add_argument("--out", default="outputs/bench/learning_curves")
+    args = parser.parse_args(argv)
+    base = SPEC_SCALE if args.spec_scale else {}
+    given = {k: getattr(args, k) for k in ("rounds", "rollouts_per_round", "bc_steps", "ppo_steps", "eval_per_object")
+             if getattr(args, k) is not None}
+    try:
+        from aerobench.envs.tasks import get_setting
+
+        setting = get_setting(args.setting)
+        for obj in args.objects or ():
+            setting.check_object(obj)
+        objects = args.objects or (None if args.spec_scale else SMALL_OBJECTS)
+        budget = Budget(setting=args.setting, objects=objects, window=args.window, seed=args.seed,
+                        max_steps=args.max_steps, **{**base, **given})
+    except ValueError as e:
+        parser.error(str(e))
+    return budget, Path(args.out)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    budget, out = parse_budget(argv)
+    started = time.monotonic()
+    summary = run(budget, out)
+    summary["wall_s"] = time.monotonic() - started
+    (out / "learning_curves.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    plot(summary, out / "learning_curves.png")
+    e = summary["expert"]
+    print(f"\nexpert held-out {100 * e['success']:.1f}% ({e['successes']}/{e['n']})")
+    for r in summary["bc"]:
+        h = r["held_out"]
+        print(f"BC {r['rounds']} round(s): {r['transitions']:>7d} transitions -> "
+              + (f"{100 * h['success']:.1f}% ({h['successes']}/{h['n']})" if h else "no data"))
+    p = summary["ppo"]
+    ratio = (p["interactions"] / max(summary["bc"][-1]["transitions"], 1)) if summary["bc"] else math.nan
+    print(f"PPO {p['interactions']} interactions -> training moving average {p['final_moving_average']}, held-out "
+          f"{100 * p['held_out']['success']:.1f}%; PPO interactions / BC transitions (largest) = {ratio:.2f}")
+    print(f"took {summary['wall_s']:.0f} s; wrote {out / 'learning_curves.json'} and {out / 'learning_curves.png'}")
+    return summary
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

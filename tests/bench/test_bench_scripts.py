@@ -1,0 +1,128 @@
+"""The data-generation benches (`bench/learning_curves.py`, `bench/diversity.py`) end to end with tiny budgets: real
+expert rollouts, real BC and PPO training, held-out evaluation, JSON and PNG; plus their pure helpers."""
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+sys.path.insert(0, str(BENCH))
+
+import diversity  # noqa: E402
+import learning_curves  # noqa: E402
+
+from aerobench.rollout.episode import EVENT_FLAGS  # noqa: E402
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _is_png(path: Path) -> bool:
+    return path.is_file() and path.read_bytes()[:8] == PNG_MAGIC
+
+
+def _finite_estimate(est) -> bool:
+    return est is not None and all(math.isfinite(v) for v in [est["mean"], *est["ci95"]]) and \
+        est["ci95"][0] - 1e-9 <= est["mean"] <= est["ci95"][1] + 1e-9
+
+
+def test_moving_average_is_a_trailing_window():
+    ma = learning_curves.moving_average(np.array([1, 0, 0, 1, 1, 1]), window=2)
+    assert ma == pytest.approx([1, 0.5, 0, 0.5, 1, 1])
+
+
+def test_phase_boundaries_from_events_and_gripper_command():
+    t = 12
+    events = np.zeros((t, len(EVENT_FLAGS)), np.float32)
+    events[7:, EVENT_FLAGS.index("is_grasped")] = 1  # grasped after step 7 -> 8 steps elapsed
+    events[9:, EVENT_FLAGS.index("is_lifted")] = 1
+    action = np.zeros((t, 5), np.float32)
+    action[:, -1] = 1.0
+    action[5:, -1] = -1.0  # the closing command starts at step 5
+    frames = {"events": events, "action": action}
+    assert diversity.phase_boundaries(frames, steps=12, success=True, approach_end=4) == [4, 5, 8, 10, 12]
+    assert diversity.phase_boundaries(frames, steps=12, success=False, approach_end=None)[-1] is None
+    events[:, EVENT_FLAGS.index("is_grasped")] = 0
+    assert diversity.phase_boundaries({"events": events, "action": action}, 12, False, 4) == [4, None, None, None, None]
+
+
+def test_bad_flags_are_one_line_errors(capsys):
+    with pytest.raises(SystemExit):
+        learning_curves.parse_budget(["--rounds", "2,1"])
+    assert "increasing positive integers" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        diversity.parse_config(["--policies", "expert,dagger"])
+    assert "expert, bc, ppo" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        learning_curves.parse_budget(["--objects", "anvil"])
+    assert "valid objects" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def learning_curves_run(tmp_path_factory):
+    """One tiny learning-curves run; its BC and PPO checkpoints also feed the diversity test."""
+    out = tmp_path_factory.mktemp("learning_curves")
+    args = ["--rounds", "1,2", "--rollouts-per-round", "1", "--bc-steps", "20", "--ppo-steps", "100",
+            "--eval-per-object", "1", "--max-steps", "30", "--out", str(out)]
+    return out, args, learning_curves.main(args)
+
+
+def test_learning_curves_end_to_end_and_resume(learning_curves_run):
+    tmp_path, args, summary = learning_curves_run
+    saved = json.loads((tmp_path / "learning_curves.json").read_text())
+    assert saved["budget"]["rounds"] == [1, 2] and _is_png(tmp_path / "learning_curves.png")
+    assert {"expert", "rounds", "bc", "ppo", "spec", "held_out_seed"} <= set(saved)
+    assert [r["rounds"] for r in saved["bc"]] == [1, 2]
+    # the expert picks the can in full-length collection episodes; round 2 adds its transitions to round 1's
+    assert saved["rounds"][0]["successes"] >= 1
+    assert saved["bc"][1]["transitions"] == sum(r["transitions"] for r in saved["rounds"]) > saved["bc"][0]["transitions"] > 0
+    for row in saved["bc"]:
+        h = row["held_out"]
+        assert h["n"] == 1 and 0.0 <= h["success"] <= 1.0 and Path(row["checkpoint"]).is_dir()
+    ppo = saved["ppo"]
+    assert ppo["interactions"] >= 100 and ppo["episodes"] >= 1  # 30-step training episodes finish
+    curve = ppo["curve"]
+    assert len(curve["global_step"]) == len(curve["success_moving_average"]) >= 1
+    assert all(0.0 <= v <= 1.0 for v in curve["success_moving_average"]) and curve["global_step"] == sorted(curve["global_step"])
+    assert saved["expert"]["n"] == 1 and ppo["held_out"]["n"] == 1
+
+    # the same command again reuses every dataset, checkpoint and evaluation: nothing new is run
+    records = sorted(tmp_path.glob("eval/*/records.jsonl"))
+    before = {p: p.read_text() for p in records}
+    again = learning_curves.main(args)
+    assert {p: p.read_text() for p in records} == before
+    def outcome(row):  # what a rerun must reproduce (timings differ)
+        return row["transitions"], row["checkpoint"], row["held_out"]["successes"], row["held_out"]["n"]
+
+    assert [outcome(r) for r in again["bc"]] == [outcome(r) for r in summary["bc"]]
+    assert again["ppo"]["curve"] == summary["ppo"]["curve"] and again["ppo"]["train_s"] == summary["ppo"]["train_s"]
+
+
+def test_diversity_end_to_end(learning_curves_run, tmp_path):
+    # training a BC and a PPO checkpoint is the learning-curves bench's shared helpers, tested above; reuse its runs
+    trained = learning_curves_run[2]
+    summary = diversity.main(["--episodes", "2", "--objects", "master_chef_can", "--max-steps", "300", "--subsets", "20",
+                              "--bc-checkpoint", trained["bc"][-1]["checkpoint"],
+                              "--ppo-checkpoint", trained["ppo"]["checkpoint"], "--out", str(tmp_path)])
+    saved = json.loads((tmp_path / "diversity.json").read_text())
+    assert _is_png(tmp_path / "diversity.png") and _is_png(tmp_path / "diversity_efficiency.png")
+    assert set(saved["policies"]) == {"expert", "bc", "ppo"}
+    assert saved["checkpoints"] == {"expert": None, "bc": trained["bc"][-1]["checkpoint"], "ppo": trained["ppo"]["checkpoint"]}
+    for name, m in saved["policies"].items():
+        assert {"episodes", "successes", "approach_paths", "coverage_cells", "direction_entropy_bits",
+                "mean_path_deviation", "time_to_success_s", "success_lengths_s"} <= set(m), name
+        assert m["episodes"] + m["init_failures"] == 2
+        for key in diversity.METRICS:  # measured where a policy reached the grasp point twice, else stated absent
+            assert _finite_estimate(m[key]) if m["approach_paths"] >= 2 else m[key] is None
+    expert = saved["policies"]["expert"]
+    # the expert reaches the grasp point of the can on every start: two paths, measured
+    assert expert["approach_paths"] == 2 and saved["subset_size"] == 2
+    assert expert["coverage_cells"]["mean"] >= 20  # a path from (1, 1) to (0, 0) crosses at least 20 cells
+    if expert["successes"]:
+        t = expert["time_to_success_s"]
+        assert all(math.isfinite(t[p]) and t[p] >= 0 for p in diversity.PHASES)
+        assert t["total"] == pytest.approx(np.mean(expert["success_lengths_s"]))
+    assert summary["policies"] == saved["policies"]
