@@ -529,6 +529,8 @@ def _add_pi_init(sub) -> None:
 
 
 def _run_pi_init(args) -> int:
+    from .envs.tasks import snake_name
+    from .export.sink import read_dataset_meta
     from .policies.pi_init import PiInitConfig, init_pi
 
     try:
@@ -536,7 +538,10 @@ def _run_pi_init(args) -> int:
                                    weights=args.weights, tokenizer=args.tokenizer, seed=args.seed))
     except ValueError as e:
         raise UserError(str(e)) from None
-    print(f"wrote {out}  (lerobot-train --config_path configs/{args.policy}_tidy_house.json --policy.path {out} ...)")
+    meta = read_dataset_meta(Path(args.dataset)) or {}
+    setting = meta.get("generation", {}).get("setting", "TidyHouse")
+    config = f"configs/{args.policy}_{snake_name(setting)}.json"
+    print(f"wrote {out}  (lerobot-train --config_path {config} --policy.path {out} --dataset.root {args.dataset} ...)")
     return 0
 
 

@@ -7,6 +7,7 @@ chains Open and Close of the fridge or the drawer around Pick -> Nav -> Place. N
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -149,6 +150,11 @@ def get_setting(name: str) -> TaskSetting:
         return SETTINGS[name]
     except KeyError:
         raise ValueError(f"unknown setting {name!r}; valid settings: {', '.join(SETTINGS)}") from None
+
+
+def snake_name(setting: str) -> str:
+    """`LongHorizonRearrangement` -> `long_horizon_rearrangement`: how file names (configs/<policy>_<name>.json) say it."""
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", setting).lower()
 
 
 def object_phrase(name: str) -> str:

@@ -2,5 +2,6 @@
 
 `evaluate` runs the shared rollout runner into a JSONL record sink and writes a versioned results JSON;
 `stats` holds the SE / Wilson / paired tests; `results` turns records into per skill x object cells;
-`metrics` the spec's trajectory-diversity and time-to-success measures; `leaderboard` renders results files.
+`metrics` the spec's trajectory-diversity and time-to-success measures; `leaderboard` renders results files;
+`held_out` counts the evaluation starts a learned policy's training data already had.
 """

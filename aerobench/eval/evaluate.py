@@ -2,11 +2,13 @@
 
 Episodes are the rollout runner's seeded plan with `episodes_per_object` episodes per skill-object pair, so two
 policies evaluated with the same seed see the same starts (which makes the paired comparison in `stats` valid).
+A learned policy's results also record how many of those starts its training data already had (`provenance.seen_in_training`).
 Records are appended as episodes finish; running the same command again continues an interrupted evaluation.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +19,8 @@ from ..envs.tasks import get_setting
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records
-from ..rollout.runner import Progress, RolloutRunner, RolloutSpec
+from ..rollout.runner import Progress, RolloutRunner, RolloutSpec, plan_episodes
+from .held_out import seen_in_training, training_starts
 from .results import summarize, write_results
 
 RESULTS_FILE = "results.json"
@@ -84,6 +87,7 @@ def evaluate(
         if on_episode:
             on_episode(episode, progress)
 
+    held_out = held_out_check(config, spec)
     RolloutRunner(spec, sink, on_episode=after).run()
     provenance = {
         "policy": config.policy, "checkpoint": _resolved(config.checkpoint),
@@ -91,13 +95,31 @@ def evaluate(
         "chain": list(config.chain) if config.chain else None,
         "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
         "sim_backend": config.sim_backend, "num_envs": config.num_envs, "max_steps": config.max_steps, "records": str(sink.path.name),
-        "command": command,
+        "command": command, "seen_in_training": held_out,
     }
     results = summarize(read_records(sink.path), provenance, label=config.label)
     if videos.is_dir():
         results["videos"] = sorted(f"videos/{p.name}" for p in videos.glob("*.mp4"))
     write_results(out / RESULTS_FILE, results)
     return results
+
+
+def held_out_check(config: EvalConfig, spec: RolloutSpec) -> dict | None:
+    """How many planned episodes start where the checkpoint's training data started (None for expert / random).
+    Warns on stderr: evaluating with the seed the demonstrations were generated with replays their starts."""
+    if config.policy in ("expert", "random"):
+        return None
+    starts = training_starts(config.policy, config.checkpoint)
+    plans = plan_episodes(spec)
+    seen = seen_in_training(config.setting, plans, starts)
+    if seen:
+        print(f"warning: {len(seen)} of {len(plans)} evaluation episodes start where the policy's training episodes "
+              f"did ({', '.join(starts.sources)}); pass a --seed the training data was not generated with for "
+              f"held-out starts", file=sys.stderr)
+    if starts.untraced:
+        print(f"warning: could not find what {', '.join(starts.untraced)} trained on, so held-out starts are not "
+              f"checked", file=sys.stderr)
+    return {"episodes": len(seen), "of": len(plans), "sources": starts.sources, "untraced": starts.untraced}
 
 
 def _resolved(checkpoint: str | None) -> str | None:

@@ -99,12 +99,23 @@ def render_markdown(table: SettingTable) -> str:
                 mean = f"**{mean}**" if table.is_best_mean(result) else mean
             lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
     lines += _chain_markdown(table)
-    lines += ["", "| Row | n per cell | Results file | Command |", "|---|---|---|---|"]
+    lines += ["", "| Row | n per cell | Starts seen in training | Results file | Command |", "|---|---|---|---|---|"]
     for result in table.results:
         ns = sorted({c["n"] for c in result["cells"]})
         command = result["provenance"].get("command") or "-"
-        lines.append(f"| {result['label']} | {', '.join(map(str, ns))} | `{result['_source']}` | `{command}` |")
+        lines.append(f"| {result['label']} | {', '.join(map(str, ns))} | {seen_in_training_text(result)} | "
+                     f"`{result['_source']}` | `{command}` |")
     return "\n".join(lines) + "\n"
+
+
+def seen_in_training_text(result: dict) -> str:
+    """"none (held out)", "k of n", "not traced" or "-" (no training data: expert, random; or not recorded)."""
+    seen = result["provenance"].get("seen_in_training")
+    if not seen:
+        return "-"
+    if seen["untraced"]:
+        return "not traced"
+    return "none (held out)" if seen["episodes"] == 0 else f"**{seen['episodes']} of {seen['of']}**"
 
 
 def chain_rows(table: SettingTable) -> list[tuple[str, str, list[str]]]:

@@ -95,6 +95,21 @@ def test_repository_leaderboards_are_generated_from_their_results(tmp_path):
         assert rendered.read_text() == (root / rendered.name).read_text(), f"leaderboards/{rendered.name} is stale"
 
 
+def test_repository_results_name_paths_relative_to_the_repository():
+    """Committed provenance says outputs/train/..., never where one machine keeps its checkout."""
+    def strings(value):
+        if isinstance(value, str):
+            yield value
+        elif isinstance(value, dict | list):
+            for v in value.values() if isinstance(value, dict) else value:
+                yield from strings(v)
+
+    for path in (Path(__file__).resolve().parents[2] / "leaderboards" / "results").glob("*.json"):
+        provenance = json.loads(path.read_text())["provenance"]
+        absolute = [s for s in strings(provenance) if s.startswith("/") or "=/" in s]
+        assert not absolute, f"{path.name}: {absolute}"
+
+
 def _chain_row(index: int, stages: list[str]) -> dict:
     """A chain episode record reaching `len(stages)` stages with the given per-stage outcomes."""
     skills = ("pick", "nav", "place")
@@ -114,3 +129,19 @@ def test_chained_stages_render_with_conditional_success(tmp_path):
     # pick 3 of 4; transport 2 of the 3 that reached it; place 1 of 2
     assert "| ppo (chained) | pick_nav_place | pick 3/4 (75.0 ± 21.7) | nav 2/3 (66.7 ± 27.2) | place 1/2 (50.0 ± 35.4) |" in md
     assert "nav 2/3 (66.7 ± 27.2)" in (tmp_path / "lb" / "index.html").read_text()
+
+
+def test_the_row_table_says_whether_a_learned_policy_saw_the_evaluation_starts(tmp_path):
+    seen = {"ACT": {"episodes": 3, "of": 4, "sources": ["ds"], "untraced": []},
+            "DP": {"episodes": 0, "of": 4, "sources": ["ds"], "untraced": []},
+            "PI0": {"episodes": 0, "of": 4, "sources": [], "untraced": ["ckpt"]},
+            "PI05": None}  # expert / random, or a results file from before the check
+    paths = []
+    for policy, value in seen.items():
+        results = summarize(spec_records(policy), {"command": "c", "seen_in_training": value}, label=policy)
+        paths.append(write_results(tmp_path / "results" / f"{policy}.json", results))
+    build_leaderboard(paths, tmp_path / "boards")
+    rows = (tmp_path / "boards" / "PrepareGroceries.md").read_text().split("| Row |")[1].splitlines()
+    assert "Starts seen in training" in rows[0]
+    column = {r.split("|")[1].strip(): r.split("|")[3].strip() for r in rows[2:] if r.startswith("| ")}
+    assert column == {"ACT": "**3 of 4**", "DP": "none (held out)", "PI0": "not traced", "PI05": "-"}

@@ -1,11 +1,12 @@
 """ACT and Diffusion Policy end to end on CPU, offline: an exported aerobench dataset -> `lerobot-train` with the repo's
 config, unmodified -> a checkpoint -> `aerobench eval --policy P --checkpoint DIR` -> results with its provenance."""
 
-import json
 import sys
 from pathlib import Path
 
 import pytest
+
+from .smoke_eval import eval_two_short_picks
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
@@ -21,23 +22,7 @@ def test_policy_trains_with_the_repo_config_and_evaluates(policy, camera_dataset
           "--num_workers", "0", "--output_dir", str(train_dir)], cwd=tmp_path)
     assert (train_dir / "checkpoints" / "last" / "pretrained_model" / "model.safetensors").is_file()
 
-    out = tmp_path / "eval"
-    proc = _run([str(BIN / "aerobench"), "eval", "--policy", policy, "--checkpoint", str(train_dir),
-                 "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can",
-                 "--episodes-per-object", "2", "--max-steps", "8", "--label", label, "--out", str(out)],
-                cwd=tmp_path)
-    assert label in proc.stdout
-    results = json.loads((out / "results.json").read_text())
-    assert results["policy"] == policy and results["label"] == label
-    assert results["provenance"]["checkpoint"] == str(train_dir.resolve())
-    assert results["provenance"]["max_steps"] == 8
-    (cell,) = results["cells"]
-    assert (cell["skill"], cell["object"], cell["n"]) == ("pick", "master_chef_can", 2)
-    records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
-    assert [r["episode_index"] for r in records] == [0, 1]
-    # an untrained policy cannot pick in 8 steps: every episode ends truncated or failed, and is counted
-    assert sum(cell["outcomes"].values()) == 2 and cell["successes"] == 0
-    assert all(r["steps"] <= 8 for r in records)
+    eval_two_short_picks(_run, policy, train_dir, label, tmp_path)
 
 
 def test_lerobot_train_evaluates_in_the_aerobench_env_during_training(camera_dataset, run_offline, tmp_path):

@@ -19,6 +19,8 @@ from aerobench.policies.pi_init import PiInitConfig, init_pi
 from aerobench.policies.pi_tiny import PI05TinyConfig
 from aerobench.policies.pi_tokenizer import save_tokenizer
 
+from .smoke_eval import eval_two_short_picks
+
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
@@ -107,7 +109,7 @@ def test_tiny_init_saves_weights_that_load_back_and_a_hub_tokenizer_fails_offlin
 
 @pytest.mark.parametrize("policy", ["pi0", "pi05"])
 def test_tiny_pi_trains_with_the_repo_config_and_evaluates(policy, camera_dataset, run_offline, tmp_path):
-    init_dir, train_dir, out = tmp_path / "init", tmp_path / "train", tmp_path / "eval"
+    init_dir, train_dir = tmp_path / "init", tmp_path / "train"
     run_offline([str(BIN / "aerobench"), "pi-init", "--policy", policy, "--variant", "tiny",
                  "--dataset", str(camera_dataset), "--out", str(init_dir)], cwd=tmp_path)
     run_offline([str(BIN / "lerobot-train"), "--config_path", str(REPO / "configs" / f"{policy}_tidy_house.json"),
@@ -124,21 +126,7 @@ def test_tiny_pi_trains_with_the_repo_config_and_evaluates(policy, camera_datase
                              for d in (init_dir, checkpoint)))  # two optimizer steps moved the weights
 
     label = f"{policy} tiny (2 steps, test)"
-    proc = run_offline([str(BIN / "aerobench"), "eval", "--policy", policy, "--checkpoint", str(train_dir),
-                        "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can",
-                        "--episodes-per-object", "2", "--max-steps", "8", "--label", label, "--out", str(out)],
-                       cwd=tmp_path)
-    assert label in proc.stdout
-    results = json.loads((out / "results.json").read_text())
-    assert results["policy"] == policy and results["label"] == label
-    assert results["provenance"]["checkpoint"] == str(train_dir.resolve())
-    (cell,) = results["cells"]
-    assert (cell["skill"], cell["object"], cell["n"]) == ("pick", "master_chef_can", 2)
-    records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
-    assert [r["episode_index"] for r in records] == [0, 1]
-    # an untrained policy cannot pick in 8 steps: every episode ends truncated or failed, and is counted
-    assert sum(cell["outcomes"].values()) == 2 and cell["successes"] == 0
-    assert all(r["steps"] <= 8 for r in records)
+    eval_two_short_picks(run_offline, policy, train_dir, label, tmp_path)
 
 
 def test_pretrained_route_links_local_weights_and_points_the_processors_at_the_local_tokenizer(camera_dataset,

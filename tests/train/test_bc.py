@@ -75,7 +75,7 @@ def test_bc_trains_on_successful_episodes_only(state_dataset, trained):
     assert [s for s, _ in read_scalars(trained, "charts/SPS")] == list(range(25, 301, 25))
 
 
-def test_bc_checkpoint_evaluates(trained, tmp_path):
+def test_bc_checkpoint_evaluates(trained, state_dataset, tmp_path):
     out = tmp_path / "eval"
     proc = _run([str(BIN / "aerobench"), "eval", "--policy", "bc", "--checkpoint", str(trained), "--setting", "TidyHouse",
                  "--skills", "pick", "--objects", "master_chef_can", "--episodes-per-object", "2", "--max-steps", "8",
@@ -91,6 +91,41 @@ def test_bc_checkpoint_evaluates(trained, tmp_path):
     assert cell["successes"] == 0 and all(r["outcome"] in ("T", "F") and r["steps"] <= 8 for r in records)
     # the policy flew: the drone moved (a constant zero action would hover in place)
     assert max(r["diagnostics"]["max_speed_mps"] for r in records) > 0.01
+    # the data was generated with seed 3, this evaluation used seed 0: held out, and traced to the dataset
+    assert results["provenance"]["seen_in_training"] == {"episodes": 0, "of": 2, "untraced": [],
+                                                          "sources": [str(state_dataset.resolve())]}
+
+
+def test_an_evaluation_with_the_generation_seed_is_flagged_as_replaying_training_starts(state_dataset, trained,
+                                                                                         capsys):
+    from aerobench.eval.evaluate import EvalConfig, held_out_check
+
+    def check(seed: int, episodes: int = 2) -> dict:
+        config = EvalConfig(policy="bc", setting="TidyHouse", skills=("pick",), objects=("master_chef_can",),
+                            episodes_per_object=episodes, checkpoint=str(trained), seed=seed)
+        return held_out_check(config, config.rollout_spec(record_cameras=False))
+
+    assert check(3)["episodes"] == 2  # the dataset's two episodes are seeds 3 * stride + 0 and + 1
+    assert "2 of 2 evaluation episodes start where the policy's training episodes did" in capsys.readouterr().err
+    assert check(3, episodes=5) == {"episodes": 2, "of": 5, "sources": [str(state_dataset.resolve())], "untraced": []}
+    assert check(4)["episodes"] == 0 and capsys.readouterr().err.count("warning") == 1  # only the seed-3 call above
+    # another skill with the same seeds does not start where a Pick demonstration did
+    config = EvalConfig(policy="bc", setting="TidyHouse", skills=("place",), objects=("master_chef_can",),
+                        episodes_per_object=2, checkpoint=str(trained), seed=3)
+    assert held_out_check(config, config.rollout_spec(record_cameras=False))["episodes"] == 0
+
+
+def test_relative_paths_a_training_run_recorded_resolve_from_where_it_ran(tmp_path, monkeypatch):
+    from aerobench.eval.held_out import _recorded_path
+
+    (tmp_path / "data" / "ds").mkdir(parents=True)
+    run = tmp_path / "runs" / "bc"
+    run.mkdir(parents=True)
+    monkeypatch.chdir(run)  # evaluated from elsewhere than the training ran
+    assert _recorded_path("data/ds", run, "runs/bc") == (tmp_path / "data" / "ds").resolve()
+    assert _recorded_path("data/ds", run, "other/bc") is None  # the run was moved: its recorded name does not match
+    assert _recorded_path(str(tmp_path / "data" / "ds"), run, None) == tmp_path / "data" / "ds"
+    assert _recorded_path("data/gone", run, "runs/bc") is None
 
 
 def test_bc_is_deterministic_and_resumes_exactly(state_dataset, tmp_path):
@@ -173,3 +208,40 @@ def test_one_checkpoint_per_skill_and_a_missing_one_is_named(trained, tmp_path):
     assert results["provenance"]["checkpoint"] == f"pick={trained.resolve()},place={trained.resolve()}"
     with pytest.raises(ValueError, match="names no folder for place"):
         EvalConfig(policy="bc", setting="TidyHouse", skills=("pick", "place"), checkpoint=f"pick={trained}").rollout_spec(False)
+
+
+def test_a_policy_sees_at_evaluation_exactly_the_inputs_bc_trained_on(state_dataset, monkeypatch, tmp_path):
+    """Replaying a demonstration's actions from its seed through the evaluator: the inputs a learned policy reads
+    (`env_inputs` with the task state) equal the exported observation.state + observation.environment_state, frame
+    by frame, so nothing differs between what BC trains on and what it acts on."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    import aerobench.rollout.runner as runner
+    from aerobench.policies.learned import env_inputs
+    from aerobench.rollout.records import RecordSink
+
+    table = LeRobotDataset("local/aerobench", root=state_dataset).hf_dataset.with_format("torch")[:]
+    first = table["episode_index"] == 0
+    demo_inputs = torch.cat([table["observation.state"][first], table["observation.environment_state"][first]], -1)
+    demo_actions = table["action"][first].float()
+    seen = []
+
+    class Replay:
+        def __init__(self, env):
+            self.env = env
+
+        def reset(self, env_idx):
+            pass
+
+        def act(self, obs):
+            seen.append(env_inputs(obs, (), 64, self.env.task_state())["state"][0].cpu())
+            return demo_actions[min(len(seen), len(demo_actions)) - 1][None].to(self.env.device)
+
+    monkeypatch.setattr(runner, "make_policy", lambda name, env, checkpoint=None: Replay(env))
+    spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=1, objects=("master_chef_can",),
+                       policy="expert", record_cameras=False, max_steps=200, seed=3)  # the fixture's first episode
+    with torch_threads(1):
+        runner.RolloutRunner(spec, RecordSink(tmp_path, spec.as_dict())).run()
+    (record,) = read_jsonl(tmp_path / "records.jsonl")
+    assert record["outcome"] == "S" and len(seen) == len(demo_actions) == record["steps"]
+    assert torch.equal(torch.stack(seen), demo_inputs.float())

@@ -1,5 +1,6 @@
 """`aerobench train ppo` on CPU: the reward on hand-built info dicts; a few windows on Pick (state only) that are
-deterministic, resume without lost or repeated windows, start from a BC checkpoint, and evaluate."""
+deterministic, resume without lost or repeated windows, start from a BC checkpoint, and evaluate; one window that
+starts from an image BC checkpoint and acts on the three cameras."""
 
 import json
 import math
@@ -112,18 +113,21 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     assert any(not torch.equal(wa[k], wc[k]) for k in wa), "another seed must give other weights"
 
 
-@pytest.fixture(scope="module")
-def bc_checkpoint(tmp_path_factory) -> Path:
-    """A small BC actor (from one 20-step expert episode; it is truncated, so it trains on outcome T)."""
-    root = tmp_path_factory.mktemp("ppo_bc")
+def _bc_from_one_short_expert_episode(root: Path, max_steps: int, cameras: bool, **bc) -> Path:
+    """A small BC actor from one truncated expert Pick episode (so it trains on outcome T: plumbing, not skill)."""
     spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=1, objects=("master_chef_can",),
-                       policy="expert", record_cameras=False, max_steps=20)
+                       policy="expert", record_cameras=cameras, max_steps=max_steps)
     sink = DatasetSink(root / "ds", {**spec.as_dict(), "keep": "all"})
     with torch_threads(1):
         RolloutRunner(spec, sink).run()
     sink.close()
-    return train_bc(BCConfig(dataset=str(root / "ds"), out=str(root / "bc"), steps=20, outcomes=("T",),
-                             hidden=(32, 32), batch_size=16, progress=False))
+    return train_bc(BCConfig(dataset=str(root / "ds"), out=str(root / "bc"), outcomes=("T",), progress=False, **bc))
+
+
+@pytest.fixture(scope="module")
+def bc_checkpoint(tmp_path_factory) -> Path:
+    return _bc_from_one_short_expert_episode(tmp_path_factory.mktemp("ppo_bc"), 20, False, steps=20, hidden=(32, 32),
+                                             batch_size=16)
 
 
 def test_ppo_from_bc_keeps_the_actor_during_critic_warmup_and_evaluates(bc_checkpoint, tmp_path):
@@ -149,6 +153,35 @@ def test_ppo_from_bc_keeps_the_actor_during_critic_warmup_and_evaluates(bc_check
     (cell,) = results["cells"]
     assert results["policy"] == "ppo" and cell["n"] == 2 and sum(cell["outcomes"].values()) == 2
     assert all(r["steps"] <= 8 and r["policy"] == "ppo" for r in read_jsonl(out / "records.jsonl"))
+
+
+def test_ppo_from_an_image_bc_checkpoint_acts_on_the_three_cameras(tmp_path):
+    """An image BC actor (three RGB-D cameras) starts PPO: the env renders the cameras, the actor keeps BC's encoder
+    during critic warm-up, and the PPO checkpoint is an image policy too."""
+    bc = _bc_from_one_short_expert_episode(tmp_path, 12, True, steps=4, batch_size=8, images=True, image_size=32,
+                                           hidden=(32,))
+    run = tmp_path / "ppo"
+    ckpt = train_ppo(_config(run, 64, init_bc=str(bc), critic_warmup_steps=64))
+    config = json.loads((ckpt / "config.json").read_text())
+    assert config["model"]["cameras"] == ["drone_front", "drone_hand", "drone_own"]
+    assert config["model"]["image_size"] == 32
+    bc_w, ppo_w = load_weights(bc), load_weights(ckpt)
+    encoder = [k for k in bc_w if k.startswith("actor.encoder.")]
+    assert encoder and all(torch.equal(bc_w[k], ppo_w[k]) for k in bc_w if k.startswith("actor."))
+    assert read_scalars(run, "charts/SPS"), "one window of 64 camera steps was collected"
+    from aerobench.policies import policy_needs_images
+
+    assert policy_needs_images("ppo", str(ckpt)) is True
+
+
+@pytest.mark.gpu
+def test_ppo_steps_many_envs_together_on_physx_cuda(tmp_path):
+    """8 envs x 64 steps on physx_cuda: one window holds 512 transitions, and the run saves a checkpoint."""
+    run = tmp_path / "ppo"
+    ckpt = train_ppo(_config(run, 512, num_envs=8, sim_backend="physx_cuda", num_minibatches=4))
+    assert _state(run)["global_step"] == 512
+    assert json.loads((ckpt / "config.json").read_text())["train"]["num_envs"] == 8
+    assert all(math.isfinite(v) for _, v in read_scalars(run, "losses/policy_loss"))
 
 
 def test_ppo_config_errors_are_one_line(tmp_path):

@@ -1,0 +1,36 @@
+"""The check every LeRobot-policy test ends with: `aerobench eval` on a freshly trained checkpoint, for two short
+Pick episodes, writes results and records that count every episode with the checkpoint's provenance."""
+
+import json
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+BIN = Path(sys.executable).parent
+
+
+def eval_two_short_picks(run: Callable[[list[str], Path], subprocess.CompletedProcess], policy: str,
+                         train_dir: Path, label: str, cwd: Path) -> dict:
+    """Scores `train_dir` with `aerobench eval --policy <policy>`, asserts on what it wrote, returns results.json."""
+    out = cwd / "eval"
+    proc = run([str(BIN / "aerobench"), "eval", "--policy", policy, "--checkpoint", str(train_dir),
+                "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can",
+                "--episodes-per-object", "2", "--max-steps", "8", "--label", label, "--out", str(out)], cwd)
+    assert label in proc.stdout
+    results = json.loads((out / "results.json").read_text())
+    assert results["policy"] == policy and results["label"] == label
+    assert results["provenance"]["checkpoint"] == str(train_dir.resolve())
+    assert results["provenance"]["max_steps"] == 8
+    (cell,) = results["cells"]
+    assert (cell["skill"], cell["object"], cell["n"]) == ("pick", "master_chef_can", 2)
+    records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
+    assert [r["episode_index"] for r in records] == [0, 1]
+    # an untrained policy cannot pick in 8 steps: every episode ends truncated or failed, and is counted
+    assert sum(cell["outcomes"].values()) == 2 and cell["successes"] == 0
+    assert all(r["steps"] <= 8 for r in records)
+    # the camera dataset is two seed-0 Pick episodes of this object, and so are these: traced through lerobot-train's
+    # train_config.json to the dataset, both are starts the policy trained on
+    seen = results["provenance"]["seen_in_training"]
+    assert (seen["episodes"], seen["of"], seen["untraced"]) == (2, 2, []) and len(seen["sources"]) == 1
+    return results

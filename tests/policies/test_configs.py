@@ -1,0 +1,34 @@
+"""`configs/` holds one LeRobot training config per policy and setting. The TidyHouse configs run end to end in the
+other tests here; every other setting's config must be the same config pointed at that setting's dataset."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from aerobench.envs.tasks import SETTINGS, snake_name
+
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
+POLICIES = ("act", "diffusion", "pi0", "pi05")
+
+
+def test_there_is_exactly_one_config_per_policy_and_setting():
+    expected = {f"{p}_{snake_name(s)}.json" for p in POLICIES for s in SETTINGS}
+    assert {p.name for p in CONFIGS.glob("*.json")} == expected
+    assert "pi05_long_horizon_rearrangement.json" in expected
+
+
+@pytest.mark.parametrize("policy", POLICIES)
+@pytest.mark.parametrize("setting", [s for s in SETTINGS if s != "TidyHouse"])
+def test_a_setting_config_is_the_tidy_house_config_on_that_settings_data(policy, setting):
+    name = snake_name(setting)
+    config = json.loads((CONFIGS / f"{policy}_{name}.json").read_text())
+    reference = json.loads((CONFIGS / f"{policy}_tidy_house.json").read_text())
+    assert config["dataset"] == {**reference["dataset"], "repo_id": f"local/aerobench_{name}", "root": f"data/{name}"}
+    assert (config["output_dir"], config["job_name"]) == (f"outputs/train/{policy}_{name}", f"{policy}_{name}")
+    if "path" in reference["policy"]:  # pi0 / pi0.5: the folder `aerobench pi-init` writes for this setting
+        assert config["policy"] == {**reference["policy"], "path": f"outputs/pi/{policy}_{name}"}
+    else:
+        assert config["policy"] == reference["policy"]
+    rest = {k: v for k, v in config.items() if k not in ("dataset", "output_dir", "job_name", "policy")}
+    assert rest == {k: v for k, v in reference.items() if k not in ("dataset", "output_dir", "job_name", "policy")}
