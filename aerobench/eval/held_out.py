@@ -54,7 +54,7 @@ def _recorded_path(path: str | None, run_dir: Path, recorded_run_dir: str | None
     in, which is `run_dir` less its recorded (relative) name. None when it is not there any more."""
     if not path:
         return None
-    candidates = [Path(path)]
+    candidates, run_dir = [Path(path)], run_dir.resolve()
     if recorded_run_dir and not Path(recorded_run_dir).is_absolute():
         depth = len(Path(recorded_run_dir).parts)
         if depth <= len(run_dir.parents) and run_dir.parts[-depth:] == Path(recorded_run_dir).parts:
