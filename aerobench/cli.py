@@ -382,7 +382,8 @@ def _add_eval(sub) -> None:
     p.add_argument("--objects", type=_csv, default=None, help="comma-separated objects (default: all of the setting's)")
     p.add_argument("--episodes-per-object", type=int, default=50)
     p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the episode plan; for a learned policy, one its "
+                   "training data was not generated with (held-out starts; results record any overlap)")
     p.add_argument("--video", type=int, default=0, help="write rollout videos of the first N episodes (renders cameras)")
     p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
     p.add_argument("--label", default=None, help="leaderboard row name (default: the policy name)")
