@@ -390,6 +390,8 @@ def _add_eval(sub) -> None:
     p.add_argument("--dataset-revision", default=None, help="the training dataset's revision, kept in the provenance")
     p.add_argument("--max-steps", type=int, default=None,
                    help="truncate episodes after N control steps (smoke tests; not comparable with full-length results)")
+    p.add_argument("--workers", type=int, default=1, help="physx_cpu: run the episodes in this many worker processes "
+                   "(shards; e.g. the number of cores)")
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
     p.set_defaults(func=_run_eval)
 
@@ -397,13 +399,13 @@ def _add_eval(sub) -> None:
 def _run_eval(args) -> int:
     from .eval.evaluate import EvalConfig, evaluate, format_table
 
-    config = EvalConfig(
-        policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
-        episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
-        seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
-        dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain,
-    )
     try:
+        config = EvalConfig(
+            policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
+            episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
+            seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
+            dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
+        )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
         config.needs_images()  # unknown names and bad checkpoints fail before any work

@@ -9,11 +9,14 @@ rounds (round k is generated with seed k). Writes `learning_curves.json` and `le
 
 The defaults are a small CPU budget (minutes: one object class, rounds 1,2 of 8 rollouts, 2000 BC steps, 2000 PPO
 interactions, 4 held-out episodes); `--spec-scale` sets the spec's (rounds 1,2,4,8 of 256 rollouts, every object of
-the setting, millions of PPO interactions: days on a CPU). Rerunning the same command continues: each
-round's dataset, each checkpoint and each evaluation already in `--out` is reused.
+the setting, 20k BC steps, millions of PPO interactions: days on a CPU, so `--ppo-steps` usually overrides it;
+`--ppo-steps 0` leaves PPO out). `--skill place` draws the same curve for Place. BC is trained with every seed of
+`--bc-seeds` (the spec uses one; two show the spread). Collection rounds and held-out evaluations run in `--workers`
+processes (shards). Rerunning the same command continues: each round's dataset, each checkpoint and each
+evaluation already in `--out` is reused.
 
     python bench/learning_curves.py [--rounds 1,2] [--rollouts-per-round 8] [--ppo-steps 2000] [--out DIR]
-    python bench/learning_curves.py --spec-scale --out outputs/bench/learning_curves_spec
+    python bench/learning_curves.py --spec-scale --ppo-steps 0 --bc-seeds 0,1 --out outputs/bench/learning_curves_spec
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ logging.getLogger("mani_skill").setLevel(logging.ERROR)
 import numpy as np  # noqa: E402
 
 HELD_OUT_SEED = 4_000  # evaluation starts, far from the collection rounds (seeds 1..8); seed * 1000003 + i < 2**32
-SKILL = "pick"  # the spec's learning curves are on Pick
+SKILLS = ("pick", "place")  # the spec's learning curves are on Pick; the issue asks for Place too
 DONE_FILE = "bench_done.json"
 EPISODES_FILE = "aerobench_episodes.jsonl"  # the export's per-episode annotation, in meta/  # written after a training run returned: its presence means "reuse"
 
@@ -51,6 +54,7 @@ SPEC = {
 @dataclass(frozen=True)
 class Budget:
     setting: str = "TidyHouse"
+    skill: str = "pick"
     objects: tuple[str, ...] | None = None  # None: every object of the setting
     rounds: tuple[int, ...] = (1, 2)
     rollouts_per_round: int = 8
@@ -58,13 +62,19 @@ class Budget:
     ppo_steps: int = 2000
     eval_per_object: int = 4
     window: int = 400
-    seed: int = 0
+    seed: int = 0  # PPO's seed
+    bc_seeds: tuple[int, ...] = (0,)
+    workers: int = 1  # collection and evaluation processes
     max_steps: int | None = None  # truncate held-out and PPO training episodes (smoke tests; collection runs in full)
 
     def __post_init__(self):
+        if self.skill not in SKILLS:
+            raise ValueError(f"--skill must be one of {', '.join(SKILLS)}, got {self.skill!r}")
+        if not self.bc_seeds or self.workers < 1 or self.ppo_steps < 0:
+            raise ValueError("--bc-seeds needs at least one seed, --workers at least 1, --ppo-steps at least 0")
         if not self.rounds or any(r < 1 for r in self.rounds) or list(self.rounds) != sorted(set(self.rounds)):
             raise ValueError(f"--rounds must be increasing positive integers like 1,2,4,8; got {self.rounds}")
-        for name in ("rollouts_per_round", "bc_steps", "ppo_steps", "eval_per_object", "window"):
+        for name in ("rollouts_per_round", "bc_steps", "eval_per_object", "window"):
             if getattr(self, name) < 1:
                 raise ValueError(f"--{name.replace('_', '-')} must be at least 1, got {getattr(self, name)}")
 
@@ -75,22 +85,55 @@ SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, 
 
 # ── collection ───────────────────────────────────────────────────────────────────────────────────────────────────
 def collect_round(budget: Budget, k: int, root: Path) -> dict:
-    """Collection round k: `rollouts_per_round` state-only expert Pick rollouts (seed k), successes kept."""
-    from aerobench.export import DatasetSink
-    from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+    """Collection round k: `rollouts_per_round` state-only expert rollouts of the skill (seed k), successes kept;
+    `workers` shard processes write into the same dataset folder, which is merged when they are all done."""
+    from aerobench.export.sink import merge_parts
+    from aerobench.rollout.runner import RolloutSpec
 
-    spec = RolloutSpec(setting=budget.setting, skills=(SKILL,), episodes=budget.rollouts_per_round, objects=budget.objects,
-                       seed=k, policy="expert", record_cameras=False)
-    sink = DatasetSink(root, {**spec.as_dict(), "keep": "success"}, keep=lambda r: r.outcome == "S")
+    spec = RolloutSpec(setting=budget.setting, skills=(budget.skill,), episodes=budget.rollouts_per_round,
+                       objects=budget.objects, seed=k, policy="expert", record_cameras=False)
     started = time.monotonic()
-    progress = RolloutRunner(spec, sink).run()
-    sink.close()
+    run_done = sum(in_workers(_collect_shard, [(spec, (i, budget.workers), root) for i in range(budget.workers)]))
+    if (root / ".aerobench" / "parts").is_dir():
+        merge_parts(root)
     elapsed = time.monotonic() - started
     records = [json.loads(line) for line in (root / ".aerobench" / "records.jsonl").read_text().splitlines() if line]
     return {
         "round": k, "episodes": len(records), "successes": sum(r["outcome"] == "S" for r in records),
-        "transitions": transitions(root), "run_now": progress.run_done, "run_s": elapsed,
+        "transitions": transitions(root), "run_now": run_done, "run_s": elapsed,
     }
+
+
+def _collect_shard(spec, shard: tuple[int, int], root: Path) -> int:
+    from dataclasses import replace
+
+    from aerobench.export import DatasetSink
+    from aerobench.rollout.runner import RolloutRunner
+
+    spec = replace(spec, shard=shard)
+    sink = DatasetSink(root, {**spec.as_dict(), "keep": "success"}, keep=lambda r: r.outcome == "S")
+    progress = RolloutRunner(spec, sink).run()
+    sink.close(merge=False)
+    return progress.run_done
+
+
+def in_workers(fn, calls: list[tuple]) -> list:
+    """`fn(*args)` for every tuple of `calls`, each in its own spawned process when there are several (physx_cpu
+    runs one env per process), with one torch thread each; results in call order."""
+    if len(calls) == 1:
+        return [_one_thread(fn, *calls[0])]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(len(calls), mp_context=multiprocessing.get_context("spawn")) as pool:
+        return [f.result() for f in [pool.submit(_one_thread, fn, *args) for args in calls]]
+
+
+def _one_thread(fn, *args):
+    from aerobench.train.common import torch_threads
+
+    with torch_threads(1):
+        return fn(*args)
 
 
 def transitions(root: Path) -> int:
@@ -156,7 +199,7 @@ def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
     from aerobench.train.ppo import PPOConfig, train_ppo
 
     started = time.monotonic()  # an interrupted run resumes from its last checkpoint (the time is this run's)
-    ckpt = Path(train_ppo(PPOConfig(setting=budget.setting, skill=SKILL, objects=budget.objects, out=str(out),
+    ckpt = Path(train_ppo(PPOConfig(setting=budget.setting, skill=budget.skill, objects=budget.objects, out=str(out),
                                     total_steps=budget.ppo_steps, seed=budget.seed, init_bc=None,
                                     max_episode_steps=budget.max_steps, progress=False)))
     elapsed = time.monotonic() - started
@@ -193,15 +236,16 @@ def held_out(budget: Budget, policy: str, checkpoint: Path | None, out: Path) ->
     from aerobench.eval.evaluate import EvalConfig, evaluate
     from aerobench.eval.stats import wilson_interval
 
-    config = EvalConfig(policy=policy, setting=budget.setting, skills=(SKILL,), objects=budget.objects,
+    config = EvalConfig(policy=policy, setting=budget.setting, skills=(budget.skill,), objects=budget.objects,
                         episodes_per_object=budget.eval_per_object, checkpoint=str(checkpoint) if checkpoint else None,
-                        seed=HELD_OUT_SEED, max_steps=budget.max_steps)
+                        seed=HELD_OUT_SEED, max_steps=budget.max_steps, workers=budget.workers)
     started = time.monotonic()
     results = evaluate(config, out)
     n = sum(c["n"] for c in results["cells"])
     k = sum(c["successes"] for c in results["cells"])
     lo, hi = wilson_interval(k, n)
-    return {"success": k / n if n else 0.0, "successes": k, "n": n, "wilson95": [lo, hi],
+    per_object = {c["object"]: [c["successes"], c["n"]] for c in results["cells"]}
+    return {"success": k / n if n else 0.0, "successes": k, "n": n, "wilson95": [lo, hi], "per_object": per_object,
             "eval_s": time.monotonic() - started, "results": str(out / "results.json")}
 
 
@@ -209,10 +253,11 @@ def held_out(budget: Budget, policy: str, checkpoint: Path | None, out: Path) ->
 def run(budget: Budget, out: Path) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     tag = f"n{budget.rollouts_per_round}" + (f"_max{budget.max_steps}" if budget.max_steps else "")
-    summary: dict = {"budget": asdict(budget), "held_out_seed": HELD_OUT_SEED, "skill": SKILL, "spec": SPEC}
+    summary: dict = {"budget": asdict(budget), "held_out_seed": HELD_OUT_SEED, "skill": budget.skill, "spec": SPEC}
+    evals = f"e{budget.eval_per_object}"
 
     print(f"expert held-out ({budget.eval_per_object} per object) ...", flush=True)
-    summary["expert"] = held_out(budget, "expert", None, out / "eval" / f"expert_{tag}")
+    summary["expert"] = held_out(budget, "expert", None, out / "eval" / f"expert_{tag}_{evals}")
     print(f"  expert held-out success {summary['expert']['successes']}/{summary['expert']['n']}", flush=True)
 
     rounds, round_roots = [], []
@@ -234,15 +279,29 @@ def run(budget: Budget, out: Path) -> dict:
                      "transitions": sum(r["transitions"] for r in rounds[:n_rounds])}
         if dataset is None:
             print(f"BC after {n_rounds} round(s): no successful expert rollout to train on", flush=True)
-            row.update(held_out=None, train_s=None, checkpoint=None)
-        else:
-            ckpt_dir = out / "bc" / f"{tag}_rounds{n_rounds}_steps{budget.bc_steps}"
-            ckpt, train_s = train_bc_checkpoint(dataset, ckpt_dir, budget.bc_steps, budget.seed)
-            row.update(checkpoint=str(ckpt), train_s=train_s,
-                       held_out=held_out(budget, "bc", ckpt, out / "eval" / f"{ckpt_dir.name}"))
-            print(f"BC after {n_rounds} round(s) ({row['transitions']} transitions, {budget.bc_steps} steps in "
-                  f"{train_s:.0f} s): held-out {row['held_out']['successes']}/{row['held_out']['n']}", flush=True)
+            row.update(held_out=None, train_s=None, checkpoint=None, seeds=[])
+            summary["bc"].append(row)
+            continue
+        row["seeds"] = []
+        for seed in budget.bc_seeds:
+            ckpt_dir = out / "bc" / (f"{tag}_rounds{n_rounds}_steps{budget.bc_steps}" + (f"_seed{seed}" if seed else ""))
+            ckpt, train_s = train_bc_checkpoint(dataset, ckpt_dir, budget.bc_steps, seed)
+            h = held_out(budget, "bc", ckpt, out / "eval" / f"{ckpt_dir.name}_{evals}")
+            row["seeds"].append({"seed": seed, "checkpoint": str(ckpt), "train_s": train_s, "held_out": h})
+            print(f"BC after {n_rounds} round(s) ({row['transitions']} transitions, seed {seed}, {budget.bc_steps} "
+                  f"steps in {train_s:.0f} s): held-out {h['successes']}/{h['n']}", flush=True)
+        # the row's marker pools the training seeds' held-out episodes (each seed's own numbers stay in "seeds")
+        k, n = sum(r["held_out"]["successes"] for r in row["seeds"]), sum(r["held_out"]["n"] for r in row["seeds"])
+        from aerobench.eval.stats import wilson_interval
+
+        row.update(checkpoint=row["seeds"][0]["checkpoint"], train_s=row["seeds"][0]["train_s"],
+                   held_out={"success": k / n if n else 0.0, "successes": k, "n": n,
+                             "wilson95": list(wilson_interval(k, n)), "pooled_seeds": list(budget.bc_seeds)})
         summary["bc"].append(row)
+
+    if budget.ppo_steps == 0:
+        summary["ppo"] = None
+        return summary
 
     ppo_dir = out / "ppo" / (f"steps{budget.ppo_steps}_seed{budget.seed}" + (f"_max{budget.max_steps}" if budget.max_steps else ""))
     print(f"PPO from scratch, {budget.ppo_steps} interactions -> {ppo_dir}", flush=True)
@@ -258,7 +317,7 @@ def run(budget: Budget, out: Path) -> dict:
         "interactions_per_s": float(steps[-1] / train_s) if len(steps) and train_s > 0 else None,
         "final_moving_average": float(ma[-1]) if len(ma) else None,
         "curve": {"global_step": steps[keep].astype(int).tolist(), "success_moving_average": ma[keep].tolist()},
-        "held_out": held_out(budget, "ppo", ckpt, out / "eval" / f"ppo_{ppo_dir.name}"),
+        "held_out": held_out(budget, "ppo", ckpt, out / "eval" / f"ppo_{ppo_dir.name}_{evals}"),
     }
     p = summary["ppo"]
     print(f"  PPO: {p['episodes']} training episodes, {p['successes']} successful, final moving average "
@@ -280,10 +339,16 @@ def plot(summary: dict, path: Path) -> None:
         y = np.array([r["held_out"]["success"] for r in bc])
         err = np.array([[r["held_out"]["success"] - r["held_out"]["wilson95"][0],
                          r["held_out"]["wilson95"][1] - r["held_out"]["success"]] for r in bc]).T.clip(0)
-        ax.errorbar(x, y, yerr=err, fmt="o-", color="C0", capsize=3, label="BC held-out (demonstration transitions)")
+        seeds = len(bc[0].get("seeds") or [None])
+        ax.errorbar(x, y, yerr=err, fmt="o-", color="C0", capsize=3,
+                    label=f"BC held-out (demonstration transitions; {seeds} training seed{'s' * (seeds > 1)} pooled)")
+        if seeds > 1:
+            for r in bc:
+                ys = [s["held_out"]["success"] for s in r["seeds"]]
+                ax.plot([r["transitions"]] * len(ys), ys, "_", color="C0", ms=10, mew=1.5)
         for r, xi, yi in zip(bc, x, y):
             ax.annotate(f"{r['rounds']}r", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    curve = summary["ppo"]["curve"]
+    curve = summary["ppo"]["curve"] if summary["ppo"] else {"global_step": []}
     if curve["global_step"]:
         ax.plot(np.maximum(curve["global_step"], 1), curve["success_moving_average"], color="C1",
                 label=f"PPO training success ({summary['budget']['window']}-episode moving average)")
@@ -294,10 +359,11 @@ def plot(summary: dict, path: Path) -> None:
     ax.set_xscale("log")
     ax.set_ylim(-0.03, 1.03)
     ax.set_xlabel("demonstration transitions (BC) / environment interactions (PPO)")
-    ax.set_ylabel(f"{summary['budget']['setting']} Pick success")
+    ax.set_ylabel(f"{summary['budget']['setting']} {summary['skill'].capitalize()} success")
     b = summary["budget"]
     ax.set_title(f"{b['rollouts_per_round']} rollouts/round, rounds {','.join(map(str, b['rounds']))}, "
-                 f"BC {b['bc_steps']} steps, PPO {b['ppo_steps']} steps", fontsize=9)
+                 f"BC {b['bc_steps']} steps" + (f", PPO {b['ppo_steps']} steps" if b["ppo_steps"] else "")
+                 + f"; held-out {b['eval_per_object']} per object", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -326,7 +392,10 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
     parser.add_argument("--ppo-steps", type=int, default=None, help="PPO environment interactions (default 2000)")
     parser.add_argument("--eval-per-object", type=int, default=None, help="held-out episodes per object (default 4)")
     parser.add_argument("--window", type=int, default=400, help="PPO moving-average window in episodes")
-    parser.add_argument("--seed", type=int, default=0, help="training seed (BC and PPO)")
+    parser.add_argument("--skill", default="pick", help="pick (the spec's figure) or place")
+    parser.add_argument("--seed", type=int, default=0, help="PPO's training seed")
+    parser.add_argument("--bc-seeds", type=_ints, default=(0,), help="BC training seeds (default 0)")
+    parser.add_argument("--workers", type=int, default=1, help="collection and evaluation processes (e.g. the cores)")
     parser.add_argument("--max-steps", type=int, default=None, help="truncate held-out and PPO training episodes (smoke tests)")
     parser.add_argument("--spec-scale", action="store_true",
                         help="the spec's budget: rounds 1,2,4,8 of 256 rollouts, 20k BC steps, 5M PPO interactions, "
@@ -343,8 +412,8 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
         for obj in args.objects or ():
             setting.check_object(obj)
         objects = args.objects or (None if args.spec_scale else SMALL_OBJECTS)
-        budget = Budget(setting=args.setting, objects=objects, window=args.window, seed=args.seed,
-                        max_steps=args.max_steps, **{**base, **given})
+        budget = Budget(setting=args.setting, skill=args.skill, objects=objects, window=args.window, seed=args.seed,
+                        bc_seeds=args.bc_seeds, workers=args.workers, max_steps=args.max_steps, **{**base, **given})
     except ValueError as e:
         parser.error(str(e))
     return budget, Path(args.out)
@@ -361,12 +430,14 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"\nexpert held-out {100 * e['success']:.1f}% ({e['successes']}/{e['n']})")
     for r in summary["bc"]:
         h = r["held_out"]
+        per_seed = ", ".join(f"seed {s['seed']} {s['held_out']['successes']}/{s['held_out']['n']}" for s in r["seeds"])
         print(f"BC {r['rounds']} round(s): {r['transitions']:>7d} transitions -> "
-              + (f"{100 * h['success']:.1f}% ({h['successes']}/{h['n']})" if h else "no data"))
+              + (f"{100 * h['success']:.1f}% ({h['successes']}/{h['n']}; {per_seed})" if h else "no data"))
     p = summary["ppo"]
-    ratio = (p["interactions"] / max(summary["bc"][-1]["transitions"], 1)) if summary["bc"] else math.nan
-    print(f"PPO {p['interactions']} interactions -> training moving average {p['final_moving_average']}, held-out "
-          f"{100 * p['held_out']['success']:.1f}%; PPO interactions / BC transitions (largest) = {ratio:.2f}")
+    if p:
+        ratio = (p["interactions"] / max(summary["bc"][-1]["transitions"], 1)) if summary["bc"] else math.nan
+        print(f"PPO {p['interactions']} interactions -> training moving average {p['final_moving_average']}, held-out "
+              f"{100 * p['held_out']['success']:.1f}%; PPO interactions / BC transitions (largest) = {ratio:.2f}")
     print(f"took {summary['wall_s']:.0f} s; wrote {out / 'learning_curves.json'} and {out / 'learning_curves.png'}")
     return summary
 

@@ -15,16 +15,30 @@ orientation, and linear and angular velocities. Layout (`STATE_FIELDS`, in this 
 The arm platform appends its three arm joint positions and velocities (shoulder, elbow, wrist): 25 values.
 Cameras (`drone_front`, `drone_hand`, `drone_own`, RGB-D 128x128) and the language instruction come separately.
 
-The privileged task state (`TASK_STATE_FIELDS`, 13 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
-`observation.environment_state`) is what state-based skill policies (BC, PPO) see besides the proprio state, as
-ManiSkill's state observations do; camera-based policies need not use it. All positions in the env frame:
+The task state (`TASK_STATE_FIELDS`, 26 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
+`observation.environment_state`) is what state-based policies (BC, PPO, the state-only ACT / Diffusion variants)
+read, as ManiSkill's state observations do: the active skill's geometry as *relative* vectors (so a policy learns
+"fly towards the grasp point", not the absolute start positions of its training episodes), the heading error the
+skill needs, and the flight state. It holds no finger position or velocity: a policy that sees its own fingers
+narrowing copies "fingers closing -> keep closing and lift" from the demonstrations instead of deciding when to close
+(docs/experiments.md, "Why BC learned nothing"). It is the same layout for every skill; camera policies need not
+use it. Positions in metres, in the env (world) frame unless the name says body:
 
-| index | field | notes |
+| index | field | meaning |
 | --- | --- | --- |
-| 0-2 | tool centre point position | m |
-| 3-5 | target object position | m; zeros in envs without an object (nav, open, close) |
-| 6-9 | target object orientation, quaternion wxyz | (1, 0, 0, 0) without an object |
-| 10-12 | the active skill's goal point | pick: the planned grasp point; place: the placement goal; nav: the target; open / close: the handle |
+| 0-4 | skill | one-hot of the active skill: pick, place, nav, open, close |
+| 5-7 | goal_pos | the active goal minus the point it is for: pick: planned grasp point - TCP; place: placement goal - object bottom centre; nav: target - airframe centre; open / close: handle grasp point - TCP |
+| 8-10 | goal_pos_body | the same vector in the heading frame (x forward, y left, z up) |
+| 11-13 | tcp_to_obj_pos | object bottom centre - TCP (zeros without an object) |
+| 14 | heading_error | rad, the skill's goal heading minus the yaw, wrapped to the goal's symmetry: pick: the grasp heading planned at the skill's start (mod pi for boxes, pi/2 for round objects); place, nav: the heading at the skill's start; open / close: facing the handle |
+| 15 | progress | pick: the object's lift above its resting height (m); open / close: articulation progress q_bar; place, nav: 0 |
+| 16 | is_grasp_confirmed | 1 once both fingers have pinched the target for `GRASP_CONFIRM_STEPS` control steps in a row, else 0 (a tactile signal, delayed so that it reports a grasp, not a closing command); an episode that starts with the object in the jaws (Place) starts confirmed |
+| 17-19 | linear_velocity | airframe velocity, m/s |
+| 20-22 | angular_velocity_body | rad/s, body frame |
+| 23-24 | gravity_body_xy | x and y of the unit gravity direction in the body frame (roll and pitch) |
+| 25 | altitude | airframe height above the floor |
+
+The arm platform appends its three arm joint positions (`arm_position`, rad): 29 values.
 """
 
 from __future__ import annotations
@@ -42,8 +56,22 @@ STATE_FIELDS = (
     ("finger_velocity", 2),
 )
 ARM_STATE_FIELDS = (("arm_position", 3), ("arm_velocity", 3))
-TASK_STATE_FIELDS = (("tcp_position", 3), ("object_position", 3), ("object_quaternion_wxyz", 4), ("goal_position", 3))
+TASK_STATE_FIELDS = (
+    ("skill", 5),
+    ("goal_pos", 3),
+    ("goal_pos_body", 3),
+    ("tcp_to_obj_pos", 3),
+    ("heading_error", 1),
+    ("progress", 1),
+    ("is_grasp_confirmed", 1),
+    ("linear_velocity", 3),
+    ("angular_velocity_body", 3),
+    ("gravity_body_xy", 2),
+    ("altitude", 1),
+)
 TASK_STATE_DIM = sum(n for _, n in TASK_STATE_FIELDS)
+assert TASK_STATE_DIM == 26
+GRASP_CONFIRM_STEPS = 3  # control steps of a continuous pinch before `is_grasp_confirmed` reads 1
 STATE_DIM = sum(n for _, n in STATE_FIELDS)
 assert STATE_DIM == 19
 
@@ -72,5 +100,36 @@ def state_field_names(with_arm: bool) -> list[str]:
     return _names(STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()))
 
 
-def task_state_field_names() -> list[str]:
-    return _names(TASK_STATE_FIELDS)
+def task_state_fields(with_arm: bool) -> tuple:
+    return TASK_STATE_FIELDS + ((("arm_position", 3),) if with_arm else ())
+
+
+def task_state_field_names(with_arm: bool = False) -> list[str]:
+    return _names(task_state_fields(with_arm))
+
+
+def field_slices(fields) -> dict[str, slice]:
+    """`{field: slice}` of a layout (`STATE_FIELDS`, `TASK_STATE_FIELDS`, ...): where each field sits in the vector."""
+    out, start = {}, 0
+    for name, n in fields:
+        out[name] = slice(start, start + n)
+        start += n
+    return out
+
+
+def wrap_angle(angle: torch.Tensor) -> torch.Tensor:
+    """`angle` wrapped into [-pi, pi]."""
+    return torch.atan2(torch.sin(angle), torch.cos(angle))
+
+
+def wrap_to_period(angle: torch.Tensor, period: torch.Tensor | float) -> torch.Tensor:
+    """`angle` wrapped into [-period/2, period/2): the error to the nearest of the headings `period` apart."""
+    period = torch.as_tensor(period, dtype=angle.dtype, device=angle.device)
+    return torch.remainder(angle + period / 2, period) - period / 2
+
+
+def heading_frame(vectors: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+    """World vectors `(N, 3)` in the heading frame of yaw `(N,)` (x forward, y left, z up)."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    x, y = vectors[:, 0], vectors[:, 1]
+    return torch.stack([c * x + s * y, -s * x + c * y, vectors[:, 2]], dim=-1)

@@ -4,6 +4,8 @@ Episodes are the rollout runner's seeded plan with `episodes_per_object` episode
 policies evaluated with the same seed see the same starts (which makes the paired comparison in `stats` valid).
 A learned policy's results also record how many of those starts its training data already had (`provenance.seen_in_training`).
 Records are appended as episodes finish; running the same command again continues an interrupted evaluation.
+With `workers` > 1 (physx_cpu runs one env per process) the plan is split into that many shards, each run in its own
+worker process into its own crash-safe record file (`shards/<i>-of-<k>/records.jsonl`); the results summarize all.
 """
 
 from __future__ import annotations
@@ -42,6 +44,13 @@ class EvalConfig:
     dataset_revision: str | None = None
     max_steps: int | None = None  # truncate every episode after this many control steps (smoke tests)
     chain: tuple[str, ...] | None = None  # e.g. ("pick", "transport", "place"): the spec's chained protocol
+    workers: int = 1  # shards run in this many worker processes
+
+    def __post_init__(self):
+        if not (isinstance(self.workers, int) and self.workers >= 1):
+            raise ValueError(f"--workers must be a positive integer, got {self.workers}")
+        if self.workers > 1 and self.num_envs > 1:
+            raise ValueError("--workers splits physx_cpu runs (one env each) into processes; with --num-envs use one")
 
     def needs_images(self) -> bool:
         """Whether the policy (every stage checkpoint of a chain) reads cameras; also validates name and checkpoint."""
@@ -49,7 +58,7 @@ class EvalConfig:
 
         return any(policy_needs_images(self.policy, c) for c in split_checkpoints(self.checkpoint).values())
 
-    def rollout_spec(self, record_cameras: bool) -> RolloutSpec:
+    def rollout_spec(self, record_cameras: bool, shard: tuple[int, int] = (0, 1)) -> RolloutSpec:
         setting = get_setting(self.setting)
         skills = (resolve_chain(self.setting, self.chain),) if self.chain else tuple(self.skills)
         checkpoints = split_checkpoints(self.checkpoint)
@@ -64,7 +73,7 @@ class EvalConfig:
             setting=self.setting, skills=skills, objects=tuple(self.objects) if self.objects else None,
             episodes=self.episodes_per_object * n_objects * len(skills), num_envs=self.num_envs, seed=self.seed,
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
-            max_steps=self.max_steps, chained=bool(self.chain),
+            max_steps=self.max_steps, chained=bool(self.chain), shard=shard,
         )
 
 
@@ -74,12 +83,40 @@ def evaluate(
     on_episode: Callable[[EpisodeData, Progress], None] | None = None,
     command: str | None = None,
 ) -> dict:
-    """Run (or continue) the evaluation into `out/records.jsonl` and write `out/results.json`; returns the results."""
+    """Run (or continue) the evaluation into `out/records.jsonl` (with workers: one file per shard) and write
+    `out/results.json`; returns the results."""
     out = Path(out)
     spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0)
-    run_spec = {**spec.as_dict(), "episodes_per_object": config.episodes_per_object}
-    sink = RecordSink(out, run_spec)
-    videos = out / "videos"
+    held_out = held_out_check(config, spec)
+    if config.workers == 1:
+        record_files = [run_shard(config, out, (0, 1), on_episode)]
+    else:
+        record_files = _run_in_workers(config, out, on_episode)
+    provenance = {
+        "policy": config.policy, "checkpoint": _resolved(config.checkpoint),
+        "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(spec.skills),
+        "chain": list(config.chain) if config.chain else None,
+        "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
+        "sim_backend": config.sim_backend, "num_envs": config.num_envs, "max_steps": config.max_steps,
+        "records": ",".join(str(f.relative_to(out)) for f in record_files),
+        "command": command, "seen_in_training": held_out,
+    }
+    rows = sorted((r for f in record_files if f.is_file() for r in read_records(f)), key=lambda r: r["episode_index"])
+    results = summarize(rows, provenance, label=config.label)
+    videos = sorted(out.glob("**/videos/*.mp4"))
+    if videos:
+        results["videos"] = [str(p.relative_to(out)) for p in videos]
+    write_results(out / RESULTS_FILE, results)
+    return results
+
+
+def run_shard(
+    config: EvalConfig, folder: Path, shard: tuple[int, int], on_episode: Callable[[EpisodeData, Progress], None] | None = None
+) -> Path:
+    """One shard's episodes into `folder/records.jsonl` (continuing what is there); returns that file."""
+    spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0, shard=shard)
+    sink = RecordSink(folder, {**spec.as_dict(), "episodes_per_object": config.episodes_per_object})
+    videos = folder / "videos"
 
     def after(episode: EpisodeData, progress: Progress) -> None:
         if episode.record.episode_index < config.video and "rgb/drone_front" in episode.frames:
@@ -87,21 +124,31 @@ def evaluate(
         if on_episode:
             on_episode(episode, progress)
 
-    held_out = held_out_check(config, spec)
     RolloutRunner(spec, sink, on_episode=after).run()
-    provenance = {
-        "policy": config.policy, "checkpoint": _resolved(config.checkpoint),
-        "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(spec.skills),
-        "chain": list(config.chain) if config.chain else None,
-        "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
-        "sim_backend": config.sim_backend, "num_envs": config.num_envs, "max_steps": config.max_steps, "records": str(sink.path.name),
-        "command": command, "seen_in_training": held_out,
-    }
-    results = summarize(read_records(sink.path), provenance, label=config.label)
-    if videos.is_dir():
-        results["videos"] = sorted(f"videos/{p.name}" for p in videos.glob("*.mp4"))
-    write_results(out / RESULTS_FILE, results)
-    return results
+    return sink.path
+
+
+def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int]) -> Path:
+    from ..train.common import torch_threads
+
+    with torch_threads(1):  # one process per core: more threads than cores slow small torch ops many-fold
+        return run_shard(config, folder, shard)
+
+
+def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
+    """Every shard in a worker process (spawned: SAPIEN and torch state is not fork-safe); `on_episode` hears of
+    each shard's episodes after it finished (the counts are in its records)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    k = config.workers
+    out.mkdir(parents=True, exist_ok=True)
+    folders = [out / "shards" / f"{i}-of-{k}" for i in range(k)]
+    with ProcessPoolExecutor(k, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(_run_shard_in_worker, config, folder, (i, k)): i for i, folder in enumerate(folders)}
+        for future in as_completed(futures):
+            future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here
+    return [folder / "records.jsonl" for folder in folders]
 
 
 def held_out_check(config: EvalConfig, spec: RolloutSpec) -> dict | None:
@@ -123,13 +170,20 @@ def held_out_check(config: EvalConfig, spec: RolloutSpec) -> dict | None:
 
 
 def _resolved(checkpoint: str | None) -> str | None:
-    """The checkpoint as an absolute path (each path of a per-skill `pick=A,place=B` mapping)."""
+    """The checkpoint's path (each path of a per-skill `pick=A,place=B` mapping): relative to the working directory
+    when it lies inside it (e.g. `leaderboards/checkpoints/...` from the repository root, so a committed results file
+    names a checkpoint any clone has), else absolute."""
     if not checkpoint:
         return None
     paths = split_checkpoints(checkpoint)
     if "*" in paths:
-        return str(Path(checkpoint).resolve())
-    return ",".join(f"{skill}={Path(p).resolve()}" for skill, p in paths.items())
+        return _portable(checkpoint)
+    return ",".join(f"{skill}={_portable(p)}" for skill, p in paths.items())
+
+
+def _portable(path: str) -> str:
+    resolved, here = Path(path).resolve(), Path.cwd().resolve()
+    return str(resolved.relative_to(here)) if resolved.is_relative_to(here) else str(resolved)
 
 
 def write_episode_video(episode: EpisodeData, path: Path, fps: int = 20) -> None:

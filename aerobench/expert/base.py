@@ -7,8 +7,6 @@ over envs: phases are `(N,)` tensors and transitions are `torch.where`, never a 
 
 from __future__ import annotations
 
-import math
-
 import torch
 
 from ..envs.control.virtual_joints import AirframeState
@@ -100,12 +98,3 @@ class SkillExpert:
         parts.append(gripper[:, None])
         return torch.cat(parts, dim=-1)
 
-
-def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, symmetric: torch.Tensor) -> torch.Tensor:
-    """Heading that puts the closing axis (body y) along the object's x axis, the nearer of the two; objects that are
-    round about z (`symmetric`) keep the current heading rounded to the room axes (supports are fitted for it)."""
-    from .motion import nearest_equivalent_yaw
-
-    across = nearest_equivalent_yaw(current_yaw, object_yaw + math.pi / 2, math.pi)
-    axis_aligned = nearest_equivalent_yaw(current_yaw, torch.zeros_like(current_yaw), math.pi / 2)
-    return torch.where(symmetric, axis_aligned, across)

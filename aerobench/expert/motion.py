@@ -4,18 +4,13 @@ interface, in normalized action units. Pure torch, `(N, ...)` tensors.
 
 from __future__ import annotations
 
-import math
-
 import torch
 
+from ..envs.observations import wrap_angle
 from ..envs.platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS
 
 POSITION_GAIN = 1.2  # 1/s: velocity command per metre of error (the flight tests' waypoint follower)
 YAW_GAIN = 1.5  # 1/s
-
-
-def wrap_angle(a: torch.Tensor) -> torch.Tensor:
-    return torch.atan2(torch.sin(a), torch.cos(a))
 
 
 def velocity_towards(error: torch.Tensor, max_speed: torch.Tensor | float, gain: float = POSITION_GAIN) -> torch.Tensor:
@@ -37,12 +32,3 @@ def flight_action(velocity: torch.Tensor, yaw_rate: torch.Tensor) -> torch.Tenso
     """`(N, 4)` normalized flight action from m/s and rad/s."""
     return torch.cat([torch.clamp(velocity / MAX_SPEED_MPS, -1, 1), torch.clamp(yaw_rate / MAX_YAW_RATE_RPS, -1, 1)[:, None]], -1)
 
-
-def nearest_equivalent_yaw(yaw: torch.Tensor, candidate: torch.Tensor, period: float) -> torch.Tensor:
-    """Among `candidate + k * period`, the heading closest to `yaw` (a symmetric grasp can be taken either way)."""
-    k = torch.round((yaw - candidate) / period)
-    return wrap_angle(candidate + k * period)
-
-
-HALF_TURN = math.pi
-QUARTER_TURN = math.pi / 2

@@ -13,10 +13,9 @@ from enum import IntEnum
 
 import torch
 
-from ..envs.control.so3 import quat_wxyz_to_matrix
 from ..envs.platforms import MAX_SPEED_MPS
-from .base import SkillExpert, grasp_heading
-from .motion import QUARTER_TURN, nearest_equivalent_yaw, wrap_angle
+from .base import SkillExpert
+from .motion import wrap_angle
 
 APPROACH_SPEED_MPS = 0.5
 ALIGN_TOLERANCE_M = 0.012  # at most; wide objects leave the open fingers only a few mm (master chef can: 4 mm)
@@ -34,7 +33,6 @@ ABOVE_OBJECT_M = 0.10  # pre-grasp: the finger tips this far above the object's 
 SIDE_STANDOFF_M = 0.15  # pre-grasp: the tool centre point this far back from the grasp point (arm platform)
 MAX_RETRIES = 2
 FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
-SYMMETRIC_SHAPES = ("cylinder",)
 
 
 class PickPhase(IntEnum):
@@ -48,41 +46,26 @@ class PickPhase(IntEnum):
 
 
 class PickExpert(SkillExpert):
+    """The grasp heading and grasp point are the evaluator's (planned when the skill starts; `skills.pick`), the same
+    ones the task state shows a learned policy."""
+
     def __init__(self, env, evaluator):
         super().__init__(env, evaluator)
-        specs = env.target_specs
-        self.symmetric = torch.tensor([s.shape in SYMMETRIC_SHAPES for s in specs], device=self.device)
-        self.is_bowl = torch.tensor([s.shape == "bowl" for s in specs], device=self.device)
-        self.bowl_rim = torch.tensor(
-            [[s.size_m[0] / 2 - s.size_m[2] / 2, s.size_m[1] - 0.015] if s.shape == "bowl" else [0.0, 0.0] for s in specs],
-            device=self.device,
-        )
         side_room = (env.platform.gripper.max_opening_m - env.target_grasp_width) / 2
         self.align_tolerance = (side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
-        self.heading = torch.zeros(self.n, device=self.device)
         self.lift_from = torch.zeros(self.n, 3, device=self.device)
         self.retries = torch.zeros(self.n, dtype=torch.long, device=self.device)
 
     def reset(self, env_idx):
         super().reset(env_idx)
         self.retries[env_idx] = 0
-        state = self.state()
-        yaw = torch.atan2(self.env.target.pose.q[:, 3], self.env.target.pose.q[:, 0]) * 2
-        self.heading[env_idx] = grasp_heading(yaw, state.yaw, self.symmetric | self.is_bowl)[env_idx]
+
+    @property
+    def heading(self) -> torch.Tensor:
+        return self.evaluator.heading
 
     def grasp_point(self) -> torch.Tensor:
-        """Where the tool centre point goes: the planned grasp point; for bowls the rim point under the heading."""
-        env = self.env
-        pose = env.target.pose
-        R = quat_wxyz_to_matrix(pose.q)
-        planned = pose.p + (R @ env.target_grasp_point[..., None])[..., 0]
-        # bowl: the rim point whose radial direction is the closing axis (body y) of the chosen heading
-        radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), torch.zeros_like(self.heading)], -1)
-        tcp_dir = radial * torch.sign((radial * (self.tcp() - pose.p)).sum(-1, keepdim=True) + 1e-9)
-        rim = pose.p + self.bowl_rim[:, :1] * tcp_dir + torch.stack(
-            [torch.zeros_like(self.heading), torch.zeros_like(self.heading), self.bowl_rim[:, 1]], -1
-        )
-        return torch.where(self.is_bowl[:, None], rim, planned)
+        return self.evaluator.grasp_target(self.tcp())
 
     def pre_grasp(self, grasp: torch.Tensor) -> torch.Tensor:
         env = self.env
@@ -147,5 +130,3 @@ class PickExpert(SkillExpert):
         gain = torch.where(fine, FINE_GAIN, 1.2)
         return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), self.heading, gripper, gain=gain)
 
-
-__all__ = ["PickExpert", "PickPhase", "QUARTER_TURN", "nearest_equivalent_yaw"]

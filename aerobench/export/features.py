@@ -12,7 +12,7 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
-from ..envs.observations import ARM_STATE_FIELDS, STATE_DIM, TASK_STATE_DIM, state_field_names, task_state_field_names
+from ..envs.observations import ARM_STATE_FIELDS, STATE_DIM, state_field_names, task_state_field_names
 from ..envs.platforms import CONTROL_HZ
 from ..envs.tasks import SKILLS
 from ..rollout.episode import CAMERAS, EVENT_FLAGS, EpisodeData
@@ -70,7 +70,8 @@ def build_features(
     state_names = state_field_names(with_arm)
     features[OBS_STATE] = {"dtype": "float32", "shape": (len(state_names),), "names": state_names}
     if task_state:
-        features[OBS_ENV_STATE] = {"dtype": "float32", "shape": (TASK_STATE_DIM,), "names": task_state_field_names()}
+        task_names = task_state_field_names(with_arm)
+        features[OBS_ENV_STATE] = {"dtype": "float32", "shape": (len(task_names),), "names": task_names}
     names = action_names(with_arm)
     features[ACTION] = {"dtype": "float32", "shape": (len(names),), "names": names}
     features[ANNOTATION_SKILL] = {"dtype": "int64", "shape": (1,), "names": None}

@@ -1,14 +1,18 @@
 """Networks and checkpoints shared by `aerobench train bc` and `aerobench train ppo`, and the `bc` / `ppo` policies.
 
-One actor serves both algorithms, so a BC checkpoint initialises the PPO actor as is. The actor maps a normalized
-19-D proprio state (plus, in the image variant, features of the three RGB-D cameras) to a *normalized* action;
-`act` unnormalizes with the checkpoint's action statistics and clamps to [-1, 1].
+One actor serves both algorithms, so a BC checkpoint initialises the PPO actor as is. The actor maps the normalized
+inputs its `InputSpec` selects (`inputs.py`: task state fields by default, optionally proprio fields and a short
+history; plus, in the image variant, features of the three RGB-D cameras) to a *normalized* flight (and arm)
+action and, last, the gripper: with the default `gripper: "binary"` a logit (> 0: close), because the gripper is
+an open/close command (the expert only ever sends -1 or +1), so `act` sends -1 or +1; with `"continuous"` a
+regressed value like the other dimensions. `act` unnormalizes with the checkpoint's statistics and clamps to [-1, 1].
 
 A checkpoint folder holds (`CHECKPOINT_FILES`):
 
     config.json          format, algorithm (bc | ppo), model shape, platform, and the training config
     model.safetensors    the networks' weights (`actor.*`; PPO adds `critic.*` and `log_std`)
     normalization.json   state and action mean / std the actor was trained with
+    starts.json          the episode starts of the training data (`provenance`), for the held-out check
     train_state.pt       optimizer state, step counters and RNG states, for resuming (not needed to act)
 
 Image inputs: per camera, RGB in [0, 1] and depth in metres / `DEPTH_SCALE_M` stacked into 4 channels and reduced
@@ -25,9 +29,11 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from .inputs import FrameHistory, InputSpec
+from .provenance import TrainingStarts, read_starts, write_starts
 from .registry import register_policy
 
-CHECKPOINT_FORMAT = "aerobench-learned-v1"
+CHECKPOINT_FORMAT = "aerobench-learned-v2"  # v2: input spec and binary gripper head (v1 read absolute positions)
 CONFIG_FILE = "config.json"
 WEIGHTS_FILE = "model.safetensors"
 NORMALIZATION_FILE = "normalization.json"
@@ -41,6 +47,7 @@ MM_PER_M = 1000.0
 IMAGE_CHANNELS = 4  # RGB + depth
 STD_FLOOR = 1e-2  # a constant dimension (e.g. an always-open gripper command) must not divide by ~0
 UINT8_MAX = 255.0
+GRIPPER_MODES = ("binary", "continuous")
 
 
 # ── inputs ────────────────────────────────────────────────────────────────────────────────────────────────────────
@@ -64,20 +71,29 @@ def camera_input(rgb: torch.Tensor, depth_mm: torch.Tensor, size: int) -> torch.
     return torch.cat([rgb, depth], dim=1)
 
 
-def env_inputs(
-    obs: dict, cameras: tuple[str, ...], image_size: int, task_state: torch.Tensor | None = None
-) -> dict[str, torch.Tensor]:
-    """The actor's inputs from an aerobench env observation (batched `(N, ...)`): state (the proprio state, then
-    the privileged task state `env.task_state()` when the model reads it) and, per camera, images."""
-    state = obs["agent"]["state"].float()
-    if task_state is not None:
-        state = torch.cat([state, task_state.to(state.device).float()], dim=-1)
-    out = {"state": state}
+def camera_inputs(obs: dict, cameras: tuple[str, ...], image_size: int) -> dict[str, torch.Tensor]:
+    """Per camera, the encoder's `(N, 4, s, s)` input from an aerobench env observation."""
+    out = {}
     for cam in cameras:
         data = obs["sensor_data"][cam]
         rgb = data["rgb"].permute(0, 3, 1, 2).float() / UINT8_MAX
         out[cam] = camera_input(rgb, data["depth"][..., 0].float().clamp_min(0), image_size)
     return out
+
+
+def is_close(gripper: torch.Tensor) -> torch.Tensor:
+    """The gripper command as a close label (1: close): the env's u_g < 0 closes the fingers."""
+    return (gripper < 0).float()
+
+
+def env_action(actor_out: torch.Tensor, normalizer: Normalizer, gripper: str, close: torch.Tensor | None = None) -> torch.Tensor:
+    """The env action `(N, A)` in [-1, 1] from the actor's output: continuous dimensions unnormalized; a binary
+    gripper sent as -1 (close) or +1 (open), from `close` (0/1, e.g. sampled by PPO) or else the logit's sign."""
+    action = normalizer.unaction(actor_out).clamp(-1.0, 1.0)
+    if gripper == "binary":
+        close = (actor_out[:, -1] > 0).float() if close is None else close
+        action = torch.cat([action[:, :-1], (1.0 - 2.0 * close)[:, None]], dim=-1)
+    return action
 
 
 # ── networks ──────────────────────────────────────────────────────────────────────────────────────────────────────
@@ -140,18 +156,21 @@ def make_critic(model: dict) -> Trunk:
     return Trunk(model, 1, out_gain=1.0)
 
 
-def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], cameras: tuple[str, ...] = (),
-               image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32), feature_dim: int = 64,
-               task_state: bool = False) -> dict:
-    """The JSON description of the networks a checkpoint holds (enough to rebuild them)."""
+def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs: InputSpec,
+               cameras: tuple[str, ...] = (), image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32),
+               feature_dim: int = 64, gripper: str = "binary") -> dict:
+    """The JSON description of the networks a checkpoint holds (enough to rebuild them). `state_dim` counts the
+    selected input values of all history frames."""
     unknown = [c for c in cameras if c not in CAMERAS]
     if unknown:
         raise ValueError(f"unknown cameras {unknown}; valid: {', '.join(CAMERAS)}")
     if cameras and image_size % 2 ** len(cnn_channels):
         raise ValueError(f"image_size {image_size} must be divisible by {2 ** len(cnn_channels)}")
+    if gripper not in GRIPPER_MODES:
+        raise ValueError(f"unknown gripper head {gripper!r}; valid: {', '.join(GRIPPER_MODES)}")
     return {"state_dim": state_dim, "action_dim": action_dim, "hidden": list(hidden), "cameras": list(cameras),
             "image_size": image_size, "cnn_channels": list(cnn_channels), "feature_dim": feature_dim,
-            "task_state": task_state}  # state_dim counts the task state's values when it is read
+            "inputs": inputs.as_dict(), "gripper": gripper}
 
 
 class Normalizer(nn.Module):
@@ -175,11 +194,15 @@ class Normalizer(nn.Module):
         return {k: getattr(self, k).tolist() for k in ("state_mean", "state_std", "action_mean", "action_std")}
 
 
-def normalization_stats(states: torch.Tensor, actions: torch.Tensor) -> dict:
-    """Mean / std (floored at `STD_FLOOR`) of `(T, S)` states and `(T, A)` actions."""
+def normalization_stats(states: torch.Tensor, actions: torch.Tensor, gripper: str = "binary") -> dict:
+    """Mean / std (floored at `STD_FLOOR`) of `(T, S)` states and `(T, A)` actions; a binary gripper's logit is not
+    normalized (mean 0, std 1)."""
+    action_mean, action_std = actions.mean(0), actions.std(0, unbiased=False).clamp_min(STD_FLOOR)
+    if gripper == "binary":
+        action_mean[-1], action_std[-1] = 0.0, 1.0
     return {
         "state_mean": states.mean(0).tolist(), "state_std": states.std(0, unbiased=False).clamp_min(STD_FLOOR).tolist(),
-        "action_mean": actions.mean(0).tolist(), "action_std": actions.std(0, unbiased=False).clamp_min(STD_FLOOR).tolist(),
+        "action_mean": action_mean.tolist(), "action_std": action_std.tolist(),
     }
 
 
@@ -210,6 +233,9 @@ def read_config(path: Path) -> dict:
         config = json.loads((path / CONFIG_FILE).read_text())
     except json.JSONDecodeError as e:
         raise ValueError(f"{path / CONFIG_FILE} is not valid JSON ({e}); re-run the training to rewrite it") from None
+    if config.get("format") == "aerobench-learned-v1":
+        raise ValueError(f"{path} is a checkpoint of an older aerobench (absolute-position inputs, regressed gripper); "
+                         f"retrain it with `aerobench train bc|ppo` on a re-exported dataset")
     if config.get("format") != CHECKPOINT_FORMAT or config.get("algorithm") not in ALGORITHMS:
         raise ValueError(f"{path / CONFIG_FILE} is not an aerobench bc/ppo checkpoint config "
                          f"(format {CHECKPOINT_FORMAT!r}, algorithm one of {', '.join(ALGORITHMS)})")
@@ -217,7 +243,7 @@ def read_config(path: Path) -> dict:
 
 
 def save_checkpoint(folder: Path, config: dict, weights: dict[str, torch.Tensor], normalization: dict,
-                    train_state: dict | None = None) -> Path:
+                    train_state: dict | None = None, starts: TrainingStarts | None = None) -> Path:
     """Write a complete checkpoint into `folder/checkpoint`, atomically: a crash leaves the old one or the new one."""
     from safetensors.torch import save_file
 
@@ -231,6 +257,8 @@ def save_checkpoint(folder: Path, config: dict, weights: dict[str, torch.Tensor]
     (tmp / NORMALIZATION_FILE).write_text(json.dumps(normalization, indent=2))
     if train_state is not None:
         torch.save(train_state, tmp / TRAIN_STATE_FILE)
+    if starts is not None:
+        write_starts(tmp, starts)
     if final.exists():
         final.rename(old)
     tmp.rename(final)
@@ -283,7 +311,8 @@ def _cached_actor(path: Path, mtime_ns: int) -> tuple[dict, Trunk, Normalizer]:
 
 
 class LearnedPolicy:
-    """The deterministic actor (the Gaussian's mean for PPO) of a `bc` or `ppo` checkpoint, on a batch of envs."""
+    """The deterministic actor (the Gaussian's mean and the gripper's more likely command for PPO) of a `bc` or `ppo`
+    checkpoint, on a batch of envs."""
 
     algorithm = "bc"
 
@@ -292,10 +321,13 @@ class LearnedPolicy:
         path, _ = self.checked_config(checkpoint)
         config, self.actor, self.normalizer = _cached_actor(path, (path / WEIGHTS_FILE).stat().st_mtime_ns)
         model = config["model"]
-        self.cameras, self.image_size = tuple(model["cameras"]), model["image_size"]
+        self.cameras, self.image_size, self.gripper = tuple(model["cameras"]), model["image_size"], model["gripper"]
+        self.inputs = InputSpec.from_dict(model["inputs"])
+        self.history = FrameHistory(self.inputs.history)
         self.device = env.device
         self.path, self.state_dim = path, model["state_dim"]
-        self.env, self.reads_task_state = env, bool(model.get("task_state", False))
+        self.env = env
+        self.config = config
         if model["action_dim"] != env.platform.action_dim:
             raise ValueError(f"checkpoint {path} acts with {model['action_dim']} values; the {env.platform.name} "
                              f"platform takes {env.platform.action_dim} (train on a dataset of the same platform)")
@@ -313,19 +345,29 @@ class LearnedPolicy:
         """Whether the actor reads the cameras; also the early check of the checkpoint (before any env is built)."""
         return bool(cls.checked_config(checkpoint)[1]["model"]["cameras"])
 
+    @classmethod
+    def training_starts(cls, checkpoint: str) -> TrainingStarts:
+        """The episode starts the checkpoint trained on (its `starts.json`)."""
+        return read_starts(resolve_checkpoint(checkpoint, cls.algorithm))
+
     def reset(self, env_idx: torch.Tensor) -> None:
-        """The actor is memoryless: nothing to clear."""
+        """Episodes restart in `env_idx`: their history frames are dropped."""
+        self.history.reset(env_idx)
+
+    def observe(self, obs) -> dict[str, torch.Tensor]:
+        """The actor's (normalized) inputs for the current observation; advances the history."""
+        task_state = self.env.task_state() if self.inputs.reads_task_state else None
+        frame = self.inputs.frame(obs["agent"]["state"].cpu(), None if task_state is None else task_state.cpu())
+        state = self.history.push(frame)
+        if state.shape[-1] != self.state_dim:
+            raise ValueError(f"checkpoint {self.path} reads {self.state_dim} input values; the env gives "
+                             f"{state.shape[-1]} (train on the same platform)")
+        cams = {k: v.cpu() for k, v in camera_inputs(obs, self.cameras, self.image_size).items()}
+        return {"state": self.normalizer.state(state), **cams}
 
     @torch.no_grad()
     def act(self, obs) -> torch.Tensor:
-        task_state = self.env.task_state() if self.reads_task_state else None
-        inputs = {k: v.cpu() for k, v in env_inputs(obs, self.cameras, self.image_size, task_state).items()}
-        if inputs["state"].shape[-1] != self.state_dim:
-            raise ValueError(f"checkpoint {self.path} reads a {self.state_dim}-D state; the env gives "
-                             f"{inputs['state'].shape[-1]} (train on the same platform)")
-        inputs["state"] = self.normalizer.state(inputs["state"])
-        action = self.normalizer.unaction(self.actor(inputs))
-        return action.clamp(-1.0, 1.0).to(self.device)
+        return env_action(self.actor(self.observe(obs)), self.normalizer, self.gripper).to(self.device)
 
 
 @register_policy("bc")

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from ..export.depth import encode_depth_mm
+from .provenance import TrainingStarts, dataset_starts, recorded_path
 from .registry import register_policy
 
 REQUIRED_FILES = ("config.json", "model.safetensors")
@@ -116,6 +117,18 @@ class LeRobotPolicy:
     def needs_images(cls, checkpoint: str | None) -> bool:
         config = _load_config(resolve_checkpoint(checkpoint, cls.kind), cls.kind)
         return any(k.startswith(("observation.images.", "observation.depth.")) for k in config.input_features)
+
+    @classmethod
+    def training_starts(cls, checkpoint: str) -> TrainingStarts:
+        """The starts of the dataset the checkpoint's `train_config.json` names (lerobot-train writes
+        OUTPUT/checkpoints/<step>/pretrained_model; a relative dataset root is relative to where it ran)."""
+        folder = resolve_checkpoint(checkpoint, cls.kind)
+        train_config = folder / "train_config.json"
+        if not train_config.is_file():
+            return TrainingStarts(untraced=[str(folder)])
+        recorded = json.loads(train_config.read_text())
+        dataset = recorded_path(recorded.get("dataset", {}).get("root"), folder.parents[2], recorded.get("output_dir"))
+        return dataset_starts(dataset) if dataset else TrainingStarts(untraced=[str(folder)])
 
     def reset(self, env_idx: torch.Tensor) -> None:
         self.model.reset()  # clears the action-chunk queue (the runner starts a batch's episodes together)

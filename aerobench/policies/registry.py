@@ -45,3 +45,14 @@ def policy_needs_images(name: str, checkpoint: str | None = None) -> bool:
         raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
     needs = getattr(POLICIES[name], "needs_images", None)
     return bool(needs(checkpoint)) if callable(needs) else False
+
+
+def policy_training_starts(name: str, checkpoint: str | None):
+    """The episode starts policy `name`'s checkpoint trained on (`provenance.TrainingStarts`; empty for policies
+    that did not train on episodes, e.g. expert and random)."""
+    from . import builtin, learned, lerobot_policies  # noqa: F401
+    from .provenance import TrainingStarts
+
+    factory = POLICIES.get(name)
+    starts = getattr(factory, "training_starts", None)
+    return starts(checkpoint) if callable(starts) and checkpoint else TrainingStarts()

@@ -2,8 +2,12 @@
 
 Spec, "Skill Policy Learning": imitate the continuous expert actions of *successful* demonstrations by minimizing the
 mean squared error between predicted and normalized actions. The episodes come from the dataset's annotation
-(`meta/aerobench_episodes.jsonl`, outcome "S" by default); the state variant reads `observation.state`, the image
-variant adds the three RGB-D cameras (`observation.images.<cam>`, `observation.depth.<cam>`).
+(`meta/aerobench_episodes.jsonl`, outcome "S" by default). The inputs are named fields of `observation.state` and
+`observation.environment_state` (`policies.inputs.InputSpec`; default: the whole task state, no proprio field),
+optionally with a short history; the image variant adds the three RGB-D cameras (`observation.images.<cam>`,
+`observation.depth.<cam>`). The gripper is an open/close command: by default a classification head (binary
+cross-entropy on "close", with the frames where the command switches weighted up, since they are a few hundred of
+tens of thousands) beside the MSE of the continuous flight (and arm) dimensions.
 
 Read top to bottom: config -> demonstrations -> normalization -> networks -> loop (log, checkpoint) -> checkpoint.
 Batches are drawn from a generator seeded by (seed, step), so a resumed run draws exactly the batches an
@@ -19,11 +23,15 @@ from pathlib import Path
 import torch
 from torch.nn import functional as F
 
+from ..envs.observations import STATE_DIM, task_state_fields
+from ..policies.inputs import InputSpec
 from ..policies.learned import (
     CAMERAS,
+    GRIPPER_MODES,
     Normalizer,
     camera_input,
     decode_packed_depth,
+    is_close,
     load_weights,
     make_actor,
     model_spec,
@@ -32,6 +40,7 @@ from ..policies.learned import (
     recover_checkpoint,
     save_checkpoint,
 )
+from ..policies.provenance import TrainingStarts, dataset_starts
 from .common import ScalarLog, check_resumable, config_dict, load_train_state, seed_everything, torch_threads
 
 OUTCOMES = ("S", "F", "T", "I")
@@ -49,8 +58,16 @@ class BCConfig:
     steps: int = field(default=10_000, metadata={"help": "gradient steps in total (a resumed run continues to this)"})
     seed: int = field(default=0, metadata={"help": "seed of the network init and the batch order"})
     images: bool = field(default=False, metadata={"help": "image variant: add the three RGB-D cameras"})
-    task_state: bool = field(default=True, metadata={"help": "also read the privileged task state "
-                             "(observation.environment_state: TCP, object pose, goal point)"})
+    state_fields: tuple[str, ...] = field(default=(), metadata={"help": "proprio state fields to read "
+                                          "(envs.observations.STATE_FIELDS, e.g. finger_position)"})
+    task_fields: tuple[str, ...] | None = field(default=None, metadata={"help": "task state fields to read "
+                                                "(observation.environment_state; default: all of the platform's)"})
+    history: int = field(default=1, metadata={"help": "input frames: the current one and history-1 before it"})
+    gripper: str = field(default="binary", metadata={"help": "gripper head: binary (open/close classification) "
+                         "or continuous (regressed with the other dimensions)"})
+    gripper_weight: float = field(default=1.0, metadata={"help": "weight of the gripper's classification loss"})
+    onset_weight: float = field(default=10.0, metadata={"help": "weight of the frames where the expert's gripper "
+                                "command switches (in the classification loss)"})
     batch_size: int = field(default=256, metadata={"help": "frames per gradient step"})
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
     hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes"})
@@ -66,6 +83,12 @@ class BCConfig:
         if not self.dataset or not self.out:
             raise ValueError("BCConfig needs dataset=DIR (an exported aerobench dataset) and out=DIR")
         self.hidden, self.outcomes = tuple(self.hidden), tuple(self.outcomes)
+        self.state_fields = tuple(self.state_fields)
+        self.task_fields = None if self.task_fields is None else tuple(self.task_fields)
+        if self.gripper not in GRIPPER_MODES:
+            raise ValueError(f"--gripper must be one of {', '.join(GRIPPER_MODES)}, got {self.gripper!r}")
+        if self.gripper_weight < 0 or self.onset_weight < 1:
+            raise ValueError("--gripper-weight must not be negative and --onset-weight must be at least 1")
         for name in ("steps", "batch_size", "save_every", "log_every", "image_size", "threads"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) > 0):
                 raise ValueError(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(self, name)}")
@@ -76,6 +99,12 @@ class BCConfig:
             raise ValueError(f"unknown outcomes {bad}; valid: {', '.join(OUTCOMES)} (S = successful demonstrations)")
         if not self.hidden or min(self.hidden) < 1:
             raise ValueError(f"--hidden needs positive sizes, e.g. 256,256; got {self.hidden}")
+        self.input_spec(with_arm=True)  # unknown field names and a bad history fail here
+
+    def input_spec(self, with_arm: bool) -> InputSpec:
+        """What the policy reads on this platform (`task_fields=None`: all of its task state)."""
+        task = self.task_fields if self.task_fields is not None else tuple(n for n, _ in task_state_fields(with_arm))
+        return InputSpec(state_fields=self.state_fields, task_fields=task, history=self.history)
 
 
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
@@ -108,18 +137,22 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         missing = [c for c in CAMERAS if f"observation.images.{c}" not in ds.features]
         if missing:
             raise ValueError(f"{root} has no camera features ({', '.join(missing)}); export with cameras or drop --images")
+    with_arm = ds.features[STATE_KEY]["shape"][0] > STATE_DIM
+    inputs = config.input_spec(with_arm)
     columns = ["episode_index", STATE_KEY, ACTION_KEY]
-    if config.task_state:
+    if inputs.reads_task_state:
         if TASK_STATE_KEY not in ds.features:
             raise ValueError(f"{root} has no {TASK_STATE_KEY} (exported by an older aerobench); re-export it, or "
-                             f"train on the proprio state alone with --no-task-state")
+                             f"train on proprio fields alone (--task-fields '' --state-fields ...)")
+        if ds.features[TASK_STATE_KEY]["names"] != [f"{n}.{i}" for n, k in task_state_fields(with_arm) for i in range(k)]:
+            raise ValueError(f"{root}'s {TASK_STATE_KEY} has another layout than this aerobench's task state "
+                             f"(exported by an older aerobench); re-export it with aerobench generate")
         columns.append(TASK_STATE_KEY)
     table = ds.hf_dataset.select_columns(columns).with_format("torch")[:]
     chosen = torch.isin(table["episode_index"], torch.tensor(episodes)).nonzero()[:, 0]
-    state = table[STATE_KEY][chosen].float()
-    if config.task_state:
-        state = torch.cat([state, table[TASK_STATE_KEY][chosen].float()], dim=-1)
-    data = {"state": state, "action": table[ACTION_KEY][chosen].float()}
+    frames = inputs.frame(table[STATE_KEY][chosen], table[TASK_STATE_KEY][chosen] if inputs.reads_task_state else None)
+    data = {"state": inputs.stack_episodes(frames, table["episode_index"][chosen]),
+            "action": table[ACTION_KEY][chosen].float(), "episode_index": table["episode_index"][chosen]}
     if config.images:
         frames = {cam: [] for cam in CAMERAS}
         for i in chosen.tolist():  # decoding video is the slow part; done once, kept reduced in memory
@@ -130,8 +163,22 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
                 frames[cam].append(camera_input(rgb, depth, config.image_size).half())
         data.update({cam: torch.cat(frames[cam]) for cam in CAMERAS})
     facts = {"episodes": len(episodes), "frames": len(chosen), "robot_type": ds.meta.robot_type,
-             "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames}
+             "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames, "inputs": inputs.as_dict()}
     return data, facts
+
+
+def demo_starts(config: BCConfig) -> TrainingStarts:
+    """The starts of every episode of the dataset (all outcomes: the safe side for the held-out check)."""
+    return dataset_starts(Path(config.dataset), source=config.dataset)
+
+
+def gripper_targets(action: torch.Tensor, episode_index: torch.Tensor, onset_weight: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """The close label (1: close) of every frame and its weight: `onset_weight` on the frames where the command
+    switches within an episode, 1 elsewhere."""
+    close = is_close(action[:, -1])
+    onset = torch.zeros_like(close, dtype=torch.bool)
+    onset[1:] = (close[1:] != close[:-1]) & (episode_index[1:] == episode_index[:-1])
+    return close, torch.where(onset, torch.full_like(close, onset_weight), torch.ones_like(close))
 
 
 # ── training ──────────────────────────────────────────────────────────────────────────────────────────────────────
@@ -161,10 +208,13 @@ def _train_bc(config: BCConfig) -> Path:
     data, facts = load_demos(config)
     state_dim, action_dim = data["state"].shape[1], data["action"].shape[1]
     cameras = CAMERAS if config.images else ()
-    model = model_spec(state_dim, action_dim, config.hidden, cameras, config.image_size, task_state=config.task_state)
-    normalizer = Normalizer(normalization_stats(data["state"], data["action"]))
+    inputs = InputSpec.from_dict(facts["inputs"])
+    model = model_spec(state_dim, action_dim, config.hidden, inputs, cameras, config.image_size, gripper=config.gripper)
+    normalizer = Normalizer(normalization_stats(data["state"], data["action"], config.gripper))
     targets = normalizer.action(data["action"])
     states = normalizer.state(data["state"])
+    close, close_weight = gripper_targets(data["action"], data["episode_index"], config.onset_weight)
+    binary = config.gripper == "binary"
 
     seed_everything(config.seed)
     actor = make_actor(model)
@@ -176,10 +226,12 @@ def _train_bc(config: BCConfig) -> Path:
     meta = {"algorithm": "bc", "model": model, "train": current, "data": facts,
             "platform": facts["robot_type"].removeprefix("aerobench_") if facts["robot_type"] else None}
 
+    starts = demo_starts(config)
+
     def save(step: int) -> Path:
         weights = {f"actor.{k}": v for k, v in actor.state_dict().items()}
         state = {"step": step, "optimizer": optimizer.state_dict()}
-        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state)
+        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state, starts)
 
     log = ScalarLog(out, start)
     bar = _progress(config, start)
@@ -190,8 +242,14 @@ def _train_bc(config: BCConfig) -> Path:
     for step in range(start + 1, config.steps + 1):
         generator = torch.Generator().manual_seed(config.seed * BATCH_SEED_STRIDE + step)
         idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
-        inputs = {"state": states[idx], **{cam: data[cam][idx].float() for cam in cameras}}
-        loss = F.mse_loss(actor(inputs), targets[idx])
+        batch = {"state": states[idx], **{cam: data[cam][idx].float() for cam in cameras}}
+        pred = actor(batch)
+        if binary:  # MSE on the continuous dimensions, weighted cross-entropy on close
+            w = close_weight[idx]
+            bce = F.binary_cross_entropy_with_logits(pred[:, -1], close[idx], reduction="none")
+            loss = F.mse_loss(pred[:, :-1], targets[idx, :-1]) + config.gripper_weight * (w * bce).sum() / w.sum()
+        else:
+            loss = F.mse_loss(pred, targets[idx])
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()

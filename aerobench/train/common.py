@@ -132,7 +132,8 @@ def add_config_arguments(parser: argparse.ArgumentParser, cls, required: tuple[s
         default = None if field.default is dataclasses.MISSING else field.default
         help_text = field.metadata.get("help", "")
         if field.name not in required and default is not None:
-            help_text += f" (default: {','.join(map(str, default)) if isinstance(default, tuple) else default})"
+            shown = (",".join(map(str, default)) or "none") if isinstance(default, tuple) else default
+            help_text += f" (default: {shown})"
         options: dict = {"dest": field.name, "help": help_text.strip(), "default": default}
         if field.name in required:
             options.update(required=True, default=None)

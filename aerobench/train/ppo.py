@@ -27,11 +27,16 @@ from pathlib import Path
 
 import torch
 from torch import nn
-from torch.distributions import Normal
+from torch.distributions import Bernoulli, Normal
+from torch.nn import functional as F
 
+from ..envs.observations import task_state_fields
+from ..policies.inputs import FrameHistory, InputSpec
 from ..policies.learned import (
+    GRIPPER_MODES,
     Normalizer,
-    env_inputs,
+    camera_inputs,
+    env_action,
     identity_stats,
     load_actor,
     load_weights,
@@ -43,6 +48,7 @@ from ..policies.learned import (
     resolve_checkpoint,
     save_checkpoint,
 )
+from ..policies.provenance import TrainingStarts, read_starts
 from .common import (
     ScalarLog,
     check_resumable,
@@ -88,8 +94,12 @@ class PPOConfig:
     clip_vloss: bool = field(default=True, metadata={"help": "clip the value loss"})
     target_kl: float | None = field(default=None, metadata={"help": "stop a window's epochs beyond this KL"})
     hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes (from scratch)"})
-    task_state: bool = field(default=True, metadata={"help": "from scratch: also read the privileged task state "
-                             "(env.task_state(): TCP, object pose, goal point); --init-bc keeps the BC model's choice"})
+    state_fields: tuple[str, ...] = field(default=(), metadata={"help": "from scratch: proprio state fields to read "
+                                          "(default none); --init-bc keeps the BC model's inputs"})
+    task_fields: tuple[str, ...] | None = field(default=None, metadata={"help": "from scratch: task state fields to "
+                                                "read (default: all of the platform's)"})
+    gripper: str = field(default="binary", metadata={"help": "from scratch: binary (Bernoulli open/close) or "
+                         "continuous (Gaussian) gripper; --init-bc keeps the BC model's head"})
     init_log_std: float = field(default=-0.5, metadata={"help": "initial log std of the Gaussian (normalized actions)"})
     critic_warmup_steps: int = field(default=0, metadata={"help": "env steps at the start that train only the critic"})
     bc_coef: float = field(default=0.0, metadata={"help": "imitation regularization: weight of the MSE to the "
@@ -133,6 +143,11 @@ class PPOConfig:
             raise ValueError("--bc-coef, --critic-warmup-steps and --bc-decay-steps must not be negative")
         if (self.bc_coef > 0 or self.critic_warmup_steps > 0) and not self.init_bc:
             raise ValueError("--bc-coef and --critic-warmup-steps apply to a BC-initialised run: add --init-bc DIR")
+        if self.gripper not in GRIPPER_MODES:
+            raise ValueError(f"--gripper must be one of {', '.join(GRIPPER_MODES)}, got {self.gripper!r}")
+        self.state_fields = tuple(self.state_fields)
+        self.task_fields = None if self.task_fields is None else tuple(self.task_fields)
+        self.input_spec(with_arm=True)  # unknown field names fail here
         if self.init_bc:
             resolve_checkpoint(self.init_bc, "bc")  # a missing checkpoint fails before the env is built
         from ..envs.control.payload import ControllerMode
@@ -147,6 +162,45 @@ class PPOConfig:
     @property
     def batch_size(self) -> int:
         return self.num_steps * self.num_envs
+
+    def input_spec(self, with_arm: bool) -> InputSpec:
+        task = self.task_fields if self.task_fields is not None else tuple(n for n, _ in task_state_fields(with_arm))
+        return InputSpec(state_fields=self.state_fields, task_fields=task)
+
+
+class ActionDistribution:
+    """The policy's action distribution on the actor's output `(N, A)`: a Gaussian (std `exp(log_std)`) over the
+    normalized continuous dimensions and, with a binary gripper, a Bernoulli over "close" (the last output is its
+    logit). Samples are `(N, A)`: the continuous values, then the close bit."""
+
+    def __init__(self, out: torch.Tensor, log_std: torch.Tensor, binary: bool):
+        self.binary = binary
+        self.normal = Normal(out[:, :-1] if binary else out, log_std.exp())
+        self.close = Bernoulli(logits=out[:, -1]) if binary else None
+
+    def sample(self) -> torch.Tensor:
+        parts = [self.normal.sample()]
+        if self.binary:
+            parts.append(self.close.sample()[:, None])
+        return torch.cat(parts, dim=-1)
+
+    def log_prob(self, action: torch.Tensor) -> torch.Tensor:
+        if not self.binary:
+            return self.normal.log_prob(action).sum(-1)
+        return self.normal.log_prob(action[:, :-1]).sum(-1) + self.close.log_prob(action[:, -1])
+
+    def entropy(self) -> torch.Tensor:
+        entropy = self.normal.entropy().sum(-1)
+        return entropy + self.close.entropy() if self.binary else entropy
+
+
+def imitation_loss(out: torch.Tensor, teacher: torch.Tensor, binary: bool) -> torch.Tensor:
+    """Distance of the actor's output to the frozen BC actor's: MSE of the continuous means, and (binary gripper)
+    the cross-entropy to the teacher's close probability."""
+    if not binary:
+        return (out - teacher).pow(2).mean()
+    mse = (out[:, :-1] - teacher[:, :-1]).pow(2).mean()
+    return mse + F.binary_cross_entropy_with_logits(out[:, -1], torch.sigmoid(teacher[:, -1]))
 
 
 class RunningMeanStd:
@@ -269,19 +323,23 @@ def _train_ppo(config: PPOConfig) -> Path:
     env = SkillEnv(config, obs_mode, train_state["episodes_started"] if train_state else 0)
     action_dim = env.base.platform.action_dim
     obs, info = env.reset_all()
-    reads_task_state = bool(model.get("task_state", False)) if bc_actor is not None else config.task_state
-    state_dim = obs["agent"]["state"].shape[-1] + (env.base.task_state().shape[-1] if reads_task_state else 0)
+    with_arm = env.base.platform.arm is not None
+    inputs = InputSpec.from_dict(model["inputs"]) if bc_actor is not None else config.input_spec(with_arm)
+    history = FrameHistory(inputs.history)
+    task_state = env.base.task_state().cpu() if inputs.reads_task_state else None
+    state_dim = inputs.frame(obs["agent"]["state"].cpu(), task_state).shape[-1] * inputs.history
     if bc_actor is None:
-        model = model_spec(state_dim, action_dim, config.hidden, task_state=reads_task_state)
+        model = model_spec(state_dim, action_dim, config.hidden, inputs, gripper=config.gripper)
         stats = identity_stats(state_dim, action_dim)
     elif (model["state_dim"], model["action_dim"]) != (state_dim, action_dim):
         raise ValueError(f"--init-bc {config.init_bc} was trained for state {model['state_dim']} / action "
                          f"{model['action_dim']}; this env has {state_dim} / {action_dim} (same platform needed)")
+    binary = model["gripper"] == "binary"
     actor, critic = make_actor(model), make_critic(model)
     if bc_actor is not None:
         actor.load_state_dict(bc_actor.state_dict())
         bc_actor.requires_grad_(False)
-    log_std = nn.Parameter(torch.full((action_dim,), float(config.init_log_std)))
+    log_std = nn.Parameter(torch.full((action_dim - binary,), float(config.init_log_std)))
     normalizer = Normalizer(stats)
     obs_rms = RunningMeanStd(state_dim) if bc_actor is None else None  # a BC actor keeps the stats it learned with
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters(), log_std], lr=config.learning_rate, eps=1e-5)
@@ -301,12 +359,24 @@ def _train_ppo(config: PPOConfig) -> Path:
     meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.base.platform.name,
             "init_bc": str(Path(config.init_bc).resolve()) if config.init_bc else None}
 
-    def inputs_of(obs) -> dict[str, torch.Tensor]:
-        task_state = env.base.task_state() if reads_task_state else None
-        return {k: v.cpu() for k, v in env_inputs(obs, cameras, image_size, task_state).items()}
+    def inputs_of(obs, keep: bool = True) -> dict[str, torch.Tensor]:
+        """The actor's raw inputs; `keep`: this is the step's observation (it enters the history)."""
+        task_state = env.base.task_state() if inputs.reads_task_state else None
+        frame = inputs.frame(obs["agent"]["state"].cpu(), None if task_state is None else task_state.cpu())
+        state = history.push(frame) if keep else history.peek(frame)
+        return {"state": state, **{k: v.cpu() for k, v in camera_inputs(obs, cameras, image_size).items()}}
 
     def normed(x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         return {**x, "state": normalizer.state(x["state"])}
+
+    bc_starts = read_starts(resolve_checkpoint(config.init_bc, "bc")) if config.init_bc else TrainingStarts()
+
+    def starts() -> TrainingStarts:
+        """The env episodes this run started (seeds seed * stride + k), and the BC data it started from."""
+        own = TrainingStarts(ranges=[(config.setting, config.skill, config.seed * RESET_SEED_STRIDE, env.started)],
+                             sources=[f"{config.out} ({env.started} PPO episodes)"])
+        own.add(bc_starts)
+        return own
 
     def save() -> Path:
         weights = {**{f"actor.{k}": v for k, v in actor.state_dict().items()},
@@ -314,7 +384,7 @@ def _train_ppo(config: PPOConfig) -> Path:
         state = {"global_step": global_step, "iteration": iteration, "episodes": episodes_done,
                  "episodes_started": env.started, "optimizer": optimizer.state_dict(),
                  "torch_rng": torch.get_rng_state(), "obs_rms": obs_rms.state() if obs_rms else None}
-        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state)
+        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state, starts())
 
     # ── storage, preallocated (num_steps, num_envs, ...) ──
     T, N = config.num_steps, env.n
@@ -352,19 +422,19 @@ def _train_ppo(config: PPOConfig) -> Path:
                 buf_inputs[k][step] = v
             dones[step] = next_done
             with torch.no_grad():
-                mean, value = actor(x), critic(x)[:, 0]
-                dist = Normal(mean, log_std.exp())
+                pred, value = actor(x), critic(x)[:, 0]
+                dist = ActionDistribution(pred, log_std, binary)
                 action = dist.sample()
-            actions[step], logprobs[step], values[step] = action, dist.log_prob(action).sum(-1), value
-            env_action = normalizer.unaction(action).clamp(-1.0, 1.0)
-            obs, _, terminated, truncated, info = env.env.step(env_action.to(env.device))
-            r, phi, _ = reward(config.skill, info, prev_phi.to(env.device), env_action.to(env.device))
+            actions[step], logprobs[step], values[step] = action, dist.log_prob(action), value
+            sent = env_action(action, normalizer, model["gripper"], close=action[:, -1] if binary else None)
+            obs, _, terminated, truncated, info = env.env.step(sent.to(env.device))
+            r, phi, _ = reward(config.skill, info, prev_phi.to(env.device), sent.to(env.device))
             r, phi = r.cpu().float(), phi.cpu()
             terminated, truncated = terminated.cpu().bool(), truncated.cpu().bool()
             cut = truncated & ~terminated
             if cut.any():  # a time limit is not an end of the task: bootstrap from the last state's value
                 with torch.no_grad():
-                    last_value = critic(normed(inputs_of(obs)))[:, 0]
+                    last_value = critic(normed(inputs_of(obs, keep=False)))[:, 0]
                 r = r + config.gamma * last_value * cut
             rewards[step] = r
             ep_return += r
@@ -384,6 +454,7 @@ def _train_ppo(config: PPOConfig) -> Path:
                     log.add("charts/episodic_length", int(ep_length[i]), global_step)
                 ep_return[done], ep_length[done] = 0.0, 0
                 obs, info = env.reset_some(done.nonzero()[:, 0], obs, info)
+                history.reset(done.nonzero()[:, 0])
                 prev_phi = torch.where(done, potential(config.skill, info).cpu(), prev_phi)
         if obs_rms is not None:  # from scratch: state statistics follow what the policy sees
             obs_rms.update(buf_raw_state.reshape(-1, state_dim))
@@ -392,7 +463,7 @@ def _train_ppo(config: PPOConfig) -> Path:
 
         # ── GAE ──
         with torch.no_grad():
-            next_value = critic(normed(inputs_of(obs)))[:, 0]
+            next_value = critic(normed(inputs_of(obs, keep=False)))[:, 0]
         advantages, last = torch.zeros((T, N)), torch.zeros(N)
         for t in reversed(range(T)):
             next_nonterminal = 1.0 - (next_done if t == T - 1 else dones[t + 1])
@@ -416,9 +487,9 @@ def _train_ppo(config: PPOConfig) -> Path:
             for start in range(0, T * N, minibatch):
                 mb = order[start : start + minibatch]
                 mb_inputs = _inputs_at(b, mb)
-                mean = actor(mb_inputs)
-                dist = Normal(mean, log_std.exp())
-                new_logprob, entropy = dist.log_prob(b_actions[mb]).sum(-1), dist.entropy().sum(-1)
+                pred = actor(mb_inputs)
+                dist = ActionDistribution(pred, log_std, binary)
+                new_logprob, entropy = dist.log_prob(b_actions[mb]), dist.entropy()
                 log_ratio = new_logprob - b_logprobs[mb]
                 ratio = log_ratio.exp()
                 with torch.no_grad():
@@ -439,7 +510,7 @@ def _train_ppo(config: PPOConfig) -> Path:
                 if bc_actor is not None and bc_coef > 0:
                     with torch.no_grad():
                         teacher = bc_actor(mb_inputs)
-                    imitation = (mean - teacher).pow(2).mean()
+                    imitation = imitation_loss(pred, teacher, binary)
                 loss = config.vf_coef * v_loss
                 if not warmup:  # critic warm-up: the BC actor stays as it is while the critic learns its values
                     loss = loss + pg_loss - config.ent_coef * entropy.mean() + bc_coef * imitation

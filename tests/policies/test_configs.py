@@ -9,7 +9,7 @@ import pytest
 from aerobench.envs.tasks import SETTINGS, snake_name
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
-POLICIES = ("act", "diffusion", "pi0", "pi05")
+POLICIES = ("act", "diffusion", "pi0", "pi05", "act_state", "diffusion_state")
 
 
 def test_there_is_exactly_one_config_per_policy_and_setting():
@@ -24,7 +24,9 @@ def test_a_setting_config_is_the_tidy_house_config_on_that_settings_data(policy,
     name = snake_name(setting)
     config = json.loads((CONFIGS / f"{policy}_{name}.json").read_text())
     reference = json.loads((CONFIGS / f"{policy}_tidy_house.json").read_text())
-    assert config["dataset"] == {**reference["dataset"], "repo_id": f"local/aerobench_{name}", "root": f"data/{name}"}
+    suffix = "_state" if policy.endswith("_state") else ""  # state-only variants train on state-only exports
+    assert config["dataset"] == {**reference["dataset"], "repo_id": f"local/aerobench_{name}{suffix}",
+                                 "root": f"data/{name}{suffix}"}
     assert (config["output_dir"], config["job_name"]) == (f"outputs/train/{policy}_{name}", f"{policy}_{name}")
     if "path" in reference["policy"]:  # pi0 / pi0.5: the folder `aerobench pi-init` writes for this setting
         assert config["policy"] == {**reference["policy"], "path": f"outputs/pi/{policy}_{name}"}
@@ -32,3 +34,16 @@ def test_a_setting_config_is_the_tidy_house_config_on_that_settings_data(policy,
         assert config["policy"] == reference["policy"]
     rest = {k: v for k, v in config.items() if k not in ("dataset", "output_dir", "job_name", "policy")}
     assert rest == {k: v for k, v in reference.items() if k not in ("dataset", "output_dir", "job_name", "policy")}
+
+
+@pytest.mark.parametrize("policy", ["act_state", "diffusion_state"])
+def test_the_state_only_configs_read_the_task_state_and_no_camera(policy):
+    from aerobench.envs.observations import TASK_STATE_DIM
+
+    config = json.loads((CONFIGS / f"{policy}_tidy_house.json").read_text())["policy"]
+    features = config["input_features"]
+    assert features["observation.environment_state"] == {"type": "ENV", "shape": [TASK_STATE_DIM]}
+    assert not any(k.startswith("observation.images.") for k in features)
+    assert config["normalization_mapping"]["ENV"] in ("MEAN_STD", "MIN_MAX")  # LeRobot leaves ENV unnormalized
+    # ACT reads the task state alone; LeRobot's Diffusion Policy always conditions on observation.state as well
+    assert ("observation.state" in features) == (policy == "diffusion_state")

@@ -67,8 +67,10 @@ def test_bc_trains_on_successful_episodes_only(state_dataset, trained):
     assert config["algorithm"] == "bc" and config["platform"] == "gripper"
     assert config["data"]["episodes"] == len(successes)
     assert config["data"]["frames"] == sum(r["steps"] for r in successes) < config["data"]["total_frames"]
-    # the 19-D proprio state, then the 13-D privileged task state (TCP, object pose, goal point)
-    assert config["model"]["state_dim"] == 19 + 13 and config["model"]["task_state"] and config["model"]["action_dim"] == 5
+    # the default inputs: the whole 26-D task state, nothing of the proprio state; a binary gripper head
+    assert config["model"]["state_dim"] == 26 and config["model"]["action_dim"] == 5
+    assert config["model"]["inputs"]["state_fields"] == [] and len(config["model"]["inputs"]["task_fields"]) == 11
+    assert config["model"]["gripper"] == "binary"
     losses = [v for _, v in read_scalars(trained, "losses/bc")]
     assert len(losses) == 300 // 25
     assert losses[-1] < 0.5 * losses[0], f"BC loss did not fall: {losses}"
@@ -115,8 +117,31 @@ def test_an_evaluation_with_the_generation_seed_is_flagged_as_replaying_training
     assert held_out_check(config, config.rollout_spec(record_cameras=False))["episodes"] == 0
 
 
+def test_a_checkpoint_copied_without_its_data_still_knows_its_training_starts(state_dataset, trained, tmp_path,
+                                                                               monkeypatch):
+    """A committed checkpoint (the files needed to act, plus starts.json) is traced without the dataset, and a results
+    file made from the repository root names it by its repository path."""
+    import shutil
+
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+    from aerobench.policies.provenance import STARTS_FILE
+
+    copy = tmp_path / "leaderboards" / "checkpoints" / "TidyHouse" / "bc"
+    copy.mkdir(parents=True)
+    for name in (*CHECKPOINT_FILES, STARTS_FILE):
+        shutil.copy(trained / "checkpoint" / name, copy / name)
+    monkeypatch.chdir(tmp_path)
+    config = EvalConfig(policy="bc", setting="TidyHouse", skills=("pick",), objects=("master_chef_can",),
+                        episodes_per_object=3, checkpoint="leaderboards/checkpoints/TidyHouse/bc", seed=3, max_steps=2)
+    with torch_threads(1):
+        results = evaluate(config, tmp_path / "eval")
+    assert results["provenance"]["checkpoint"] == "leaderboards/checkpoints/TidyHouse/bc"
+    seen = results["provenance"]["seen_in_training"]
+    assert (seen["episodes"], seen["of"], seen["untraced"]) == (2, 3, [])  # the dataset's two seed-3 episodes
+
+
 def test_relative_paths_a_training_run_recorded_resolve_from_where_it_ran(tmp_path, monkeypatch):
-    from aerobench.eval.held_out import _recorded_path
+    from aerobench.policies.provenance import recorded_path as _recorded_path
 
     (tmp_path / "data" / "ds").mkdir(parents=True)
     run = tmp_path / "runs" / "bc"
@@ -212,18 +237,23 @@ def test_one_checkpoint_per_skill_and_a_missing_one_is_named(trained, tmp_path):
 
 def test_a_policy_sees_at_evaluation_exactly_the_inputs_bc_trained_on(state_dataset, monkeypatch, tmp_path):
     """Replaying a demonstration's actions from its seed through the evaluator: the inputs a learned policy reads
-    (`env_inputs` with the task state) equal the exported observation.state + observation.environment_state, frame
-    by frame, so nothing differs between what BC trains on and what it acts on."""
+    (an `InputSpec` over the proprio state and the task state, with history) equal what BC builds from the exported
+    observation.state + observation.environment_state, frame by frame, so nothing differs between what BC trains on
+    and what it acts on."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     import aerobench.rollout.runner as runner
-    from aerobench.policies.learned import env_inputs
+    from aerobench.policies.inputs import ALL_STATE_FIELDS, FrameHistory, InputSpec
     from aerobench.rollout.records import RecordSink
 
+    inputs = InputSpec(state_fields=ALL_STATE_FIELDS[:6], task_fields=("goal_pos", "heading_error", "linear_velocity"),
+                       history=3)
     table = LeRobotDataset("local/aerobench", root=state_dataset).hf_dataset.with_format("torch")[:]
     first = table["episode_index"] == 0
-    demo_inputs = torch.cat([table["observation.state"][first], table["observation.environment_state"][first]], -1)
+    frames = inputs.frame(table["observation.state"][first], table["observation.environment_state"][first])
+    demo_inputs = inputs.stack_episodes(frames, table["episode_index"][first])
     demo_actions = table["action"][first].float()
+    history = FrameHistory(inputs.history)
     seen = []
 
     class Replay:
@@ -231,10 +261,10 @@ def test_a_policy_sees_at_evaluation_exactly_the_inputs_bc_trained_on(state_data
             self.env = env
 
         def reset(self, env_idx):
-            pass
+            history.reset(env_idx)
 
         def act(self, obs):
-            seen.append(env_inputs(obs, (), 64, self.env.task_state())["state"][0].cpu())
+            seen.append(history.push(inputs.frame(obs["agent"]["state"].cpu(), self.env.task_state().cpu()))[0])
             return demo_actions[min(len(seen), len(demo_actions)) - 1][None].to(self.env.device)
 
     monkeypatch.setattr(runner, "make_policy", lambda name, env, checkpoint=None: Replay(env))

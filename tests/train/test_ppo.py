@@ -201,3 +201,23 @@ def test_ppo_config_errors_are_one_line(tmp_path):
     proc = subprocess.run([str(BIN / "aerobench"), "train", "ppo", "--setting", "Nowhere", "--skill", "pick", "--out",
                            str(tmp_path / "x")], env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "TidyHouse" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_the_action_distribution_is_a_gaussian_with_a_bernoulli_gripper():
+    from torch.distributions import Normal
+
+    from aerobench.train.ppo import ActionDistribution
+
+    out, log_std = torch.tensor([[0.5, -0.2, 0.0, 0.1, 2.0]]), torch.full((4,), -1.0)
+    dist = ActionDistribution(out, log_std, binary=True)
+    close = torch.tensor([[0.4, -0.1, 0.0, 0.0, 1.0]])
+    gaussian = Normal(out[:, :4], log_std.exp()).log_prob(close[:, :4]).sum(-1)
+    assert torch.allclose(dist.log_prob(close), gaussian + torch.log(torch.sigmoid(torch.tensor(2.0))))
+    open_ = torch.cat([close[:, :4], torch.zeros(1, 1)], -1)
+    assert torch.allclose(dist.log_prob(open_), gaussian + torch.log(torch.sigmoid(torch.tensor(-2.0))))
+    torch.manual_seed(0)
+    samples = torch.cat([dist.sample() for _ in range(200)])
+    assert set(samples[:, -1].tolist()) == {0.0, 1.0} and samples[:, -1].mean() > 0.8  # p(close) = 0.88
+    assert dist.entropy().shape == (1,)
+    continuous = ActionDistribution(out, torch.full((5,), -1.0), binary=False)
+    assert torch.allclose(continuous.log_prob(out), Normal(out, torch.full((5,), -1.0).exp()).log_prob(out).sum(-1))

@@ -18,10 +18,11 @@ from mani_skill.utils.registration import register_env
 from ..checks import FailureCause, Phase, consecutive
 from ..control.arm import arm_point_positions_body
 from ..geometry import body_points_to_world, point_box_distance
+from ..observations import wrap_angle
 from ..scenes import articulated
 from ..tasks import instruction
 from .base import HELD_FORCE_N, AeroSkillEnv
-from .evaluator import SkillEvaluator
+from .evaluator import GoalFeatures, SkillEvaluator
 
 OPEN_THRESHOLD = {"fridge": 0.75, "drawer": 0.90}  # spec: alpha_a
 CLOSE_THRESHOLD = 0.01  # spec: q_bar <= 0.01
@@ -175,6 +176,15 @@ class ArticulationEvaluator(SkillEvaluator):
             "tcp_to_handle": torch.linalg.norm(ctx.tcp - self.handle_point(), dim=-1),
         }
         return signals, success, flags
+
+    def goal_features(self, ctx) -> GoalFeatures:
+        normal = self.handle_normal()
+        facing = torch.atan2(-normal[:, 1], -normal[:, 0])
+        return GoalFeatures(
+            goal_pos=self.handle_point() - ctx.tcp,
+            heading_error=wrap_angle(facing - ctx.state.yaw),
+            progress=self.progress(),
+        )
 
     def instruction(self, env):
         return instruction(self.skill, target=self.names[int(self.fixture_id[env])])

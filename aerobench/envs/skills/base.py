@@ -32,6 +32,7 @@ from ..base_env import AerialEnv
 from ..checks import (
     FailureCause,
     SafetyLimits,
+    consecutive,
     flight_envelope_flags,
     is_pinched,
     latch_failure,
@@ -51,10 +52,11 @@ from ..geometry import (
     point_box_distance,
 )
 from ..objects import ObjectSpec, build_object, get_object
+from ..observations import GRASP_CONFIRM_STEPS, heading_frame
 from ..scenes import articulated, generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
-from ..tasks import DEFAULT_PLATFORM, TaskSetting, get_setting
+from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
 
 SUPPORT_KINDS = ("table", "counter", "shelf", "cabinet", "sofa", "vehicle", "fridge_shelf", "drawer")
 START_DISTANCE_M = (0.5, 1.0)  # spec: skill episodes start 0.5-1 m from the target
@@ -179,6 +181,7 @@ class AeroSkillEnv(AerialEnv):
             extra = torch.cat([arm[k] for k in ("elbow", "wrist", "grasp")], 0).to(self.device)
             self.start_proxy_points = torch.cat([self.proxy_points, extra], 0)
         self.evaluators = self._make_evaluators()
+        assert all(ev.skill in SKILLS for ev in self.evaluators)
 
     def _build_per_env(self, specs: list[ObjectSpec], name: str) -> Actor:
         def mesh(spec: ObjectSpec):
@@ -410,7 +413,11 @@ class AeroSkillEnv(AerialEnv):
             self.init_failed = torch.zeros(n, dtype=torch.bool, device=self.device)
             self.instructions = [""] * n
             self._gripper_command = torch.ones(n, device=self.device)
+            self._grasp_streak = torch.zeros(n, dtype=torch.long, device=self.device)
+            self.starts_held = torch.zeros(n, dtype=torch.bool, device=self.device)
         self._fail_cause[env_idx] = 0
+        self._grasp_streak[env_idx] = 0
+        self.starts_held[env_idx] = False  # set by starts that put the object in the jaws (Place)
         self._episode_step[env_idx] = 0
         self._gripper_command[env_idx] = 1.0
         self.init_failed[env_idx] = ~self._sample_episode(env_idx)
@@ -476,7 +483,12 @@ class AeroSkillEnv(AerialEnv):
         step_id = int(self._elapsed_steps.sum()) if self.num_envs else 0
         if getattr(self, "_signals_step", -1) == step_id and hasattr(self, "_signals"):
             return self._signals
-        ctx = self.step_context()
+        ctx = self._ctx = self.step_context()
+        if ctx.is_grasped is not None:
+            # an episode that starts holding the object (an eligible held state) starts with its grasp confirmed
+            held_start = self.starts_held & (ctx.step < GRASP_CONFIRM_STEPS)
+            streak = consecutive(self._grasp_streak, ctx.is_grasped)
+            self._grasp_streak = torch.where(held_start, torch.clamp(streak, min=GRASP_CONFIRM_STEPS), streak)
         envelope = flight_envelope_flags(ctx.state.position, ctx.state.rotation, self.workspace_lo, self.workspace_hi, self.safety)
         active = self.active_evaluator_index()
         info: dict[str, torch.Tensor] = {
@@ -569,20 +581,39 @@ class AeroSkillEnv(AerialEnv):
         return extra
 
     def task_state(self) -> torch.Tensor:
-        """`(N, 13)` privileged task state (`observations.TASK_STATE_FIELDS`): TCP, object pose, active goal."""
-        n = self.num_envs
-        if self.target is not None:
-            obj_p, obj_q = self.target.pose.p, self.target.pose.q
-        else:
-            obj_p = torch.zeros(n, 3, device=self.device)
-            obj_q = torch.tensor([1.0, 0.0, 0.0, 0.0], device=self.device).expand(n, 4)
-        goal = torch.zeros(n, 3, device=self.device)
+        """`(N, 26)` task state (`(N, 29)` with the arm) in the layout of `observations.TASK_STATE_FIELDS`: the active
+        skill's relative goal geometry, the grasp confirmation and the flight state, for state-based policies."""
+        self.evaluate()  # the step's context (computed once per control step)
+        ctx, n = self._ctx, self.num_envs
         active = self.active_evaluator_index()
-        for k, evaluator in enumerate(self.evaluators):
-            rows = (active == k).nonzero()[:, 0]
-            if len(rows):
-                goal[rows] = evaluator.anchor(rows).to(goal.dtype)
-        return torch.cat([self.agent.tcp_pose.p, obj_p, obj_q, goal], dim=-1).float()
+        goal = torch.zeros(n, 3, device=self.device)
+        heading_error, progress = torch.zeros(n, device=self.device), torch.zeros(n, device=self.device)
+        skill = torch.zeros(n, dtype=torch.long, device=self.device)
+        for k, evaluator in enumerate(self.evaluators):  # every evaluator's features, kept where it is active
+            mine = active == k
+            f = evaluator.goal_features(ctx)
+            goal = torch.where(mine[:, None], f.goal_pos, goal)
+            heading_error = torch.where(mine, f.heading_error, heading_error)
+            progress = torch.where(mine, f.progress, progress)
+            skill = torch.where(mine, SKILLS.index(evaluator.skill), skill)
+        state = ctx.state
+        zeros = torch.zeros(n, 3, device=self.device)
+        parts = [
+            torch.nn.functional.one_hot(skill, len(SKILLS)).float(),
+            goal,
+            heading_frame(goal, state.yaw),
+            ctx.object_pose.p - ctx.tcp if ctx.object_pose is not None else zeros,
+            heading_error[:, None],
+            progress[:, None],
+            (self._grasp_streak >= GRASP_CONFIRM_STEPS).float()[:, None],
+            state.velocity,
+            state.angular_velocity_body,
+            -state.rotation[:, 2, :2],  # gravity (0, 0, -1) in the body frame: -R^T e_z, its x and y
+            (state.position[:, 2] - self.workspace_lo[:, 2])[:, None],
+        ]
+        if self.platform.arm is not None:
+            parts.append(self.agent.arm_qpos())
+        return torch.cat(parts, dim=-1).float()
 
     def get_instruction(self, env: int = 0) -> str:
         return self.instructions[env]

@@ -7,11 +7,22 @@ advance there, so the same evaluator serves a single-skill env and one stage of 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 
 from ..checks import FailureCause
 
 Flags = list[tuple[FailureCause, torch.Tensor]]
+
+
+@dataclass
+class GoalFeatures:
+    """One skill's part of the task state (`observations.TASK_STATE_FIELDS`), `(N, ...)` for every env."""
+
+    goal_pos: torch.Tensor  # (N, 3) the goal minus the point it is for, world frame
+    heading_error: torch.Tensor  # (N,) rad, wrapped to the goal heading's symmetry
+    progress: torch.Tensor  # (N,)
 
 
 class SkillEvaluator:
@@ -35,6 +46,10 @@ class SkillEvaluator:
 
     def update(self, ctx, mine: torch.Tensor) -> tuple[dict[str, torch.Tensor], torch.Tensor, Flags]:
         """(signals, success `(N,)`, failure flags in priority order) for this control step."""
+        raise NotImplementedError
+
+    def goal_features(self, ctx) -> GoalFeatures:
+        """The relative goal geometry a state-based policy reads while this skill is active."""
         raise NotImplementedError
 
     def instruction(self, env: int) -> str:

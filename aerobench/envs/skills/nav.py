@@ -7,9 +7,10 @@ import torch
 from mani_skill.utils.registration import register_env
 
 from ..checks import FailureCause, consecutive
+from ..observations import wrap_angle
 from ..tasks import instruction
 from .base import AeroSkillEnv
-from .evaluator import SkillEvaluator
+from .evaluator import GoalFeatures, SkillEvaluator
 
 NAV_REACH_M = 0.10  # airframe centre within this distance of the target
 NAV_SETTLE_MPS = 0.05
@@ -30,6 +31,7 @@ class NavEvaluator(SkillEvaluator):
         self.target_names = [""] * self.n
         self.settle_streak = self.zeros(torch.long)
         self.lost_streak = self.zeros(torch.long)
+        self.heading = self.zeros()  # held from the skill's start
 
     def sample_target(self, env_idx: torch.Tensor) -> torch.Tensor:
         ok = torch.ones(len(env_idx), dtype=torch.bool, device=self.device)
@@ -50,6 +52,7 @@ class NavEvaluator(SkillEvaluator):
             self.target_names[i] = name
 
     def begin(self, env_idx):
+        self.heading[env_idx] = self.env.agent.airframe_state().yaw[env_idx]
         self.settle_streak[env_idx] = 0
         self.lost_streak[env_idx] = 0
 
@@ -68,6 +71,13 @@ class NavEvaluator(SkillEvaluator):
             flags.append((FailureCause.OBJECT_DROP, self.lost_streak >= LOST_GRASP_STEPS))
         signals = {"nav_distance": distance, "is_nav_reached": reached, "nav_settle_steps": self.settle_streak.clone()}
         return signals, success, flags
+
+    def goal_features(self, ctx) -> GoalFeatures:
+        return GoalFeatures(
+            goal_pos=self.target - ctx.state.position,
+            heading_error=wrap_angle(self.heading - ctx.state.yaw),
+            progress=torch.zeros_like(self.heading),
+        )
 
     def instruction(self, env):
         return instruction("nav", target=self.target_names[env])

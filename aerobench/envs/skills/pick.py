@@ -8,13 +8,25 @@ import torch
 from mani_skill.utils.registration import register_env
 
 from ..checks import FailureCause, consecutive
+from ..control.so3 import quat_wxyz_to_matrix
+from ..observations import wrap_to_period
 from ..tasks import instruction
 from .base import AeroSkillEnv
-from .evaluator import SkillEvaluator
+from .evaluator import GoalFeatures, SkillEvaluator
 
 PICK_LIFT_M = 0.10  # lift threshold above the instance's own resting height (so it differs per instance)
 PICK_HOLD_STEPS = 10  # consecutive control steps grasped and lifted (0.5 s)
 START_ABOVE_OBJECT_M = 0.15  # the tool centre point starts at least this far above the object's top
+ROUND_SHAPES = ("cylinder", "bowl")  # round about z: any heading on the room axes grasps them
+BOWL_PINCH_BELOW_RIM_M = 0.015  # the bowl is pinched this far below its rim (objects.ObjectSpec.grasp_point_m)
+
+
+def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, is_round: torch.Tensor) -> torch.Tensor:
+    """The heading that puts the closing axis (body y) along the object's x axis, the nearer of the two; objects that
+    are round about z keep the current heading rounded to the room axes (supports are fitted for it)."""
+    across = current_yaw + wrap_to_period(object_yaw + math.pi / 2 - current_yaw, math.pi)
+    axis_aligned = current_yaw + wrap_to_period(-current_yaw, math.pi / 2)
+    return torch.where(is_round, axis_aligned, across)
 
 
 class PickEvaluator(SkillEvaluator):
@@ -26,6 +38,16 @@ class PickEvaluator(SkillEvaluator):
         self.rest_z = self.zeros()
         self.support_index = self.zeros(torch.long)
         self.hold_streak = self.zeros(torch.long)
+        specs = env.target_specs
+        self.is_round = torch.tensor([s.shape in ROUND_SHAPES for s in specs], dtype=torch.bool, device=self.device)
+        self.is_bowl = torch.tensor([s.shape == "bowl" for s in specs], dtype=torch.bool, device=self.device)
+        # bowl: rim radius of the pinch point and its height above the bottom
+        self.bowl_rim = torch.tensor(
+            [[s.size_m[0] / 2 - s.size_m[2] / 2, s.size_m[1] - BOWL_PINCH_BELOW_RIM_M] if s.shape == "bowl" else [0.0, 0.0]
+             for s in specs], device=self.device,
+        )
+        self.heading_period = torch.where(self.is_round, math.pi / 2, math.pi)
+        self.heading = self.zeros()  # the grasp heading planned when the skill starts
 
     def sample(self, env_idx: torch.Tensor) -> torch.Tensor:
         """Put the target upright at a random spot of a random source support; `(M,)` whether one existed."""
@@ -39,8 +61,31 @@ class PickEvaluator(SkillEvaluator):
         return ok
 
     def begin(self, env_idx):
-        self.rest_z[env_idx] = self.env.target.pose.p[env_idx, 2]
+        pose = self.env.target.pose
+        self.rest_z[env_idx] = pose.p[env_idx, 2]
         self.hold_streak[env_idx] = 0
+        object_yaw = 2 * torch.atan2(pose.q[:, 3], pose.q[:, 0])
+        planned = grasp_heading(object_yaw, self.env.agent.airframe_state().yaw, self.is_round)
+        self.heading[env_idx] = planned[env_idx]
+
+    def grasp_target(self, tcp: torch.Tensor) -> torch.Tensor:
+        """Where the tool centre point grasps `(N, 3)`: the object's planned grasp point; for the bowl, the rim point
+        whose radial direction is the closing axis (body y) of the planned heading, on the side nearer `tcp`."""
+        pose = self.env.target.pose
+        R = quat_wxyz_to_matrix(pose.q)
+        planned = pose.p + (R @ self.env.target_grasp_point[..., None])[..., 0]
+        zero = torch.zeros_like(self.heading)
+        radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), zero], -1)
+        side = torch.sign((radial * (tcp - pose.p)).sum(-1, keepdim=True) + 1e-9)
+        rim = pose.p + self.bowl_rim[:, :1] * side * radial + torch.stack([zero, zero, self.bowl_rim[:, 1]], -1)
+        return torch.where(self.is_bowl[:, None], rim, planned)
+
+    def goal_features(self, ctx) -> GoalFeatures:
+        return GoalFeatures(
+            goal_pos=self.grasp_target(ctx.tcp) - ctx.tcp,
+            heading_error=wrap_to_period(self.heading - ctx.state.yaw, self.heading_period),
+            progress=ctx.object_bottom_z - self.rest_z,
+        )
 
     def anchor(self, env_idx):
         pose = self.env.target.pose

@@ -9,10 +9,11 @@ from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs import Pose
 
 from ..checks import FailureCause, consecutive
+from ..observations import wrap_angle
 from ..platforms import CONTROL_HZ
 from ..tasks import instruction
 from .base import AeroSkillEnv
-from .evaluator import SkillEvaluator
+from .evaluator import GoalFeatures, SkillEvaluator
 
 PLACE_ALIGN_M = 0.05  # horizontal alignment tolerance: the event t_o
 PLACE_GOAL_RADIUS_M = 0.10  # goal region around the goal point
@@ -38,6 +39,7 @@ class PlaceEvaluator(SkillEvaluator):
         self.stable_streak = self.zeros(torch.long)
         self.unsupported_streak = self.zeros(torch.long)
         self.collision_impulse = self.zeros()
+        self.heading = self.zeros()  # held from the skill's start: the object keeps its place in the jaws
 
     def sample_goal(self, env_idx: torch.Tensor, avoid_support: torch.Tensor | None = None) -> torch.Tensor:
         """A goal point on a destination support (`(M,)` ok: the layout has one)."""
@@ -48,6 +50,7 @@ class PlaceEvaluator(SkillEvaluator):
         return ok
 
     def begin(self, env_idx):
+        self.heading[env_idx] = self.env.agent.airframe_state().yaw[env_idx]
         self.released[env_idx] = False
         self.stable_streak[env_idx] = 0
         self.unsupported_streak[env_idx] = 0
@@ -105,6 +108,13 @@ class PlaceEvaluator(SkillEvaluator):
             "collision_impulse": self.collision_impulse.clone(),
         }
         return signals, success, flags
+
+    def goal_features(self, ctx) -> GoalFeatures:
+        return GoalFeatures(
+            goal_pos=self.goal - ctx.object_pose.p,
+            heading_error=wrap_angle(self.heading - ctx.state.yaw),
+            progress=torch.zeros_like(self.heading),
+        )
 
     def instruction(self, env):
         support = self.env.support_of(env, int(self.goal_support[env]))
@@ -173,6 +183,7 @@ class AeroPlaceEnv(AeroSkillEnv):
         )
         self.set_drone(env_idx, position, yaw, finger_half_opening=self.target_grasp_width[env_idx] / 2)
         put_object_in_gripper(self, env_idx, yaw)
+        self.starts_held[env_idx] = True
         place.begin(env_idx)
         for i in env_idx.tolist():
             self.instructions[i] = place.instruction(i)

@@ -1,0 +1,121 @@
+"""What aerobench's state policies (bc, ppo) read: named fields of the proprio state and of the task state, and how
+many recent frames. A processor in LeRobot's sense: it sits between the observation and the network and is saved
+with the checkpoint, so training and acting select exactly the same values.
+
+Field names are those of `envs.observations` (`STATE_FIELDS`, `TASK_STATE_FIELDS`; the arm platform adds
+`arm_position` / `arm_velocity`). The default reads the whole task state and nothing of the proprio state: the task
+state already carries the flight state, and the proprio state's finger position and velocity are what a policy
+copies instead of deciding when to close (docs/experiments.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+
+from ..envs.observations import ARM_STATE_FIELDS, STATE_FIELDS, field_slices, task_state_fields
+
+ALL_TASK_FIELDS = tuple(name for name, _ in task_state_fields(with_arm=True))
+ALL_STATE_FIELDS = tuple(name for name, _ in STATE_FIELDS + ARM_STATE_FIELDS)
+FINGER_FIELDS = ("finger_position", "finger_velocity")
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """`state_fields` of the proprio state and `task_fields` of the task state, in that order, per frame; `history`
+    frames (the current one first, then older ones; an episode's first frame repeats until there are enough)."""
+
+    state_fields: tuple[str, ...] = ()
+    task_fields: tuple[str, ...] = ALL_TASK_FIELDS
+    history: int = 1
+
+    def __post_init__(self):
+        object.__setattr__(self, "state_fields", tuple(self.state_fields))
+        object.__setattr__(self, "task_fields", tuple(self.task_fields))
+        bad = [f for f in self.state_fields if f not in ALL_STATE_FIELDS]
+        if bad:
+            raise ValueError(f"unknown proprio state fields {bad}; valid: {', '.join(ALL_STATE_FIELDS)}")
+        bad = [f for f in self.task_fields if f not in ALL_TASK_FIELDS]
+        if bad:
+            raise ValueError(f"unknown task state fields {bad}; valid: {', '.join(ALL_TASK_FIELDS)}")
+        if not self.state_fields and not self.task_fields:
+            raise ValueError("a state policy must read at least one state or task state field")
+        if not (isinstance(self.history, int) and self.history >= 1):
+            raise ValueError(f"--history must be a positive integer, got {self.history}")
+
+    @property
+    def reads_task_state(self) -> bool:
+        return bool(self.task_fields)
+
+    def _indices(self, with_arm: bool) -> tuple[torch.Tensor, torch.Tensor]:
+        state = field_slices(STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()))
+        task = field_slices(task_state_fields(with_arm))
+        missing = [f for f in self.state_fields if f not in state] + [f for f in self.task_fields if f not in task]
+        if missing:
+            raise ValueError(f"the {'arm' if with_arm else 'gripper'} platform's observations have no {missing}")
+
+        def gather(slices: dict[str, slice], names: tuple[str, ...]) -> torch.Tensor:
+            return torch.tensor([i for n in names for i in range(slices[n].start, slices[n].stop)], dtype=torch.long)
+
+        return gather(state, self.state_fields), gather(task, self.task_fields)
+
+    def frame(self, state: torch.Tensor, task_state: torch.Tensor | None) -> torch.Tensor:
+        """One frame's inputs `(T, F)` from proprio states `(T, S)` and task states `(T, K)` (the platform follows
+        from the proprio size)."""
+        with_arm = state.shape[-1] > sum(n for _, n in STATE_FIELDS)
+        si, ti = self._indices(with_arm)
+        parts = [state.float()[..., si]]
+        if self.task_fields:
+            if task_state is None:
+                raise ValueError("this policy reads the task state (observation.environment_state) but none was given")
+            parts.append(task_state.float().to(state.device)[..., ti])
+        return torch.cat(parts, dim=-1)
+
+    def stack_episodes(self, frames: torch.Tensor, episode_index: torch.Tensor) -> torch.Tensor:
+        """`(T, F)` frames of whole episodes in order -> `(T, history * F)`: each row with its `history - 1`
+        predecessors of the same episode (the episode's first frame repeated before its start)."""
+        if self.history == 1:
+            return frames
+        t = torch.arange(len(frames))
+        new_episode = torch.ones(len(frames), dtype=torch.bool)
+        new_episode[1:] = episode_index[1:] != episode_index[:-1]
+        first = torch.cummax(torch.where(new_episode, t, torch.zeros_like(t)), 0).values  # each row's episode start
+        return torch.cat([frames[torch.maximum(t - k, first)] for k in range(self.history)], dim=-1)
+
+    def as_dict(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> InputSpec:
+        return cls(**d)
+
+
+class FrameHistory:
+    """The last `history` input frames of each env while acting (`(N, history * F)`), cleared per env on reset."""
+
+    def __init__(self, history: int):
+        self.history, self.frames, self.fresh = history, None, None
+
+    def reset(self, env_idx: torch.Tensor) -> None:
+        if self.fresh is not None:
+            self.fresh[env_idx.cpu()] = True
+
+    def push(self, frame: torch.Tensor) -> torch.Tensor:
+        """Add the current frame `(N, F)` and return the stacked inputs `(N, history * F)`."""
+        if self.history == 1:
+            return frame
+        self.frames = self._stacked(frame)
+        self.fresh[:] = False
+        return torch.cat(list(self.frames), dim=-1)
+
+    def peek(self, frame: torch.Tensor) -> torch.Tensor:
+        """The stacked inputs with `frame` as the current one, without keeping it (e.g. a value bootstrap)."""
+        return frame if self.history == 1 else torch.cat(list(self._stacked(frame)), dim=-1)
+
+    def _stacked(self, frame: torch.Tensor) -> torch.Tensor:
+        if self.frames is None or self.frames.shape[1] != frame.shape[0]:
+            self.frames = frame[None].repeat(self.history, 1, 1)
+            self.fresh = torch.zeros(frame.shape[0], dtype=torch.bool)
+        fresh = self.fresh[None, :, None]
+        return torch.where(fresh, frame[None].expand_as(self.frames), torch.cat([frame[None], self.frames[:-1]]))

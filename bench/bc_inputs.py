@@ -1,0 +1,129 @@
+"""Which inputs and which gripper head let BC learn a skill (Pick by default): closed-loop, held-out success of BC variants that differ in
+one design choice each, with two training seeds (docs/experiments.md, "Why BC learned nothing").
+
+Every variant trains `aerobench.train.bc` on the same demonstrations (`--dataset`, an aerobench export with the
+task state) for the same steps and is scored by `aerobench.eval` on the same held-out starts (`--eval-seed`, a seed
+the demonstrations were not generated with), optionally also on starts of its own training data
+(`--train-seed`). Writes `bc_inputs.json` (every number) under `--out`; rerunning the same command reuses finished
+checkpoints and evaluations.
+
+    python bench/bc_inputs.py --dataset outputs/data/pick_mcc --objects master_chef_can --out outputs/bench/bc_inputs
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+
+from aerobench.policies.inputs import ALL_TASK_FIELDS, FINGER_FIELDS  # noqa: E402
+
+GRIPPER_TASK_FIELDS = tuple(f for f in ALL_TASK_FIELDS if f != "arm_position")
+
+
+def _without(*fields: str) -> tuple[str, ...]:
+    return tuple(f for f in GRIPPER_TASK_FIELDS if f not in fields)
+
+
+# One design choice each, against "default" (the shipped BC: the whole task state, no proprio field, a binary
+# gripper head). Values are BCConfig fields.
+VARIANTS: dict[str, dict] = {
+    "default": {},
+    "finger_inputs": {"state_fields": FINGER_FIELDS},  # the proprio finger position and velocity, as before
+    "regressed_gripper": {"gripper": "continuous"},  # the gripper regressed with the flight dims (MSE)
+    "no_heading_error": {"task_fields": _without("heading_error")},
+    "no_grasp_flag": {"task_fields": _without("is_grasp_confirmed")},
+    "absolute_position": {"state_fields": ("position",)},  # + the airframe's absolute position
+    "world_frame_only": {"task_fields": _without("goal_pos_body")},
+    "history_3": {"history": 3},
+    "finger_inputs_regressed_gripper": {"state_fields": FINGER_FIELDS, "gripper": "continuous"},  # the old design
+}
+
+
+def train(name: str, dataset: Path, out: Path, steps: int, seed: int) -> tuple[Path, float]:
+    from aerobench.train.bc import BCConfig, train_bc
+
+    done = out / "bench_done.json"
+    if done.is_file():
+        row = json.loads(done.read_text())
+        return Path(row["checkpoint"]), row["train_s"]
+    started = time.monotonic()
+    ckpt = train_bc(BCConfig(dataset=str(dataset), out=str(out), steps=steps, seed=seed, progress=False,
+                             **VARIANTS[name]))
+    elapsed = time.monotonic() - started
+    done.write_text(json.dumps({"checkpoint": str(ckpt), "train_s": elapsed}) + "\n")
+    return ckpt, elapsed
+
+
+def score(checkpoint: Path, setting: str, skill: str, objects: tuple[str, ...] | None, episodes: int, seed: int,
+          workers: int, out: Path) -> dict:
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+
+    results = evaluate(EvalConfig(policy="bc", setting=setting, skills=(skill,), objects=objects,
+                                  episodes_per_object=episodes, checkpoint=str(checkpoint), seed=seed,
+                                  workers=workers), out)
+    n = sum(c["n"] for c in results["cells"])
+    k = sum(c["successes"] for c in results["cells"])
+    modes: dict[str, int] = {}
+    for c in results["cells"]:
+        for mode, count in c["modes"].items():
+            modes[mode] = modes.get(mode, 0) + count
+    return {"successes": k, "n": n, "modes": modes, "seen_in_training": results["provenance"]["seen_in_training"]}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dataset", required=True, help="aerobench export of expert demonstrations of --skill")
+    parser.add_argument("--setting", default="TidyHouse")
+    parser.add_argument("--skill", default="pick", help="the skill the demonstrations show (pick or place)")
+    parser.add_argument("--objects", default=None, help="comma-separated evaluation objects (default: the setting's)")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of: {', '.join(VARIANTS)}")
+    parser.add_argument("--seeds", default="0,1", help="training seeds")
+    parser.add_argument("--steps", type=int, default=20_000, help="BC gradient steps")
+    parser.add_argument("--episodes", type=int, default=20, help="held-out episodes per object")
+    parser.add_argument("--eval-seed", type=int, default=1, help="held-out starts (not the data's generation seed)")
+    parser.add_argument("--train-seed", type=int, default=None, help="also score on starts of this seed (the data's)")
+    parser.add_argument("--train-episodes", type=int, default=10, help="episodes per object on the training starts")
+    parser.add_argument("--workers", type=int, default=2, help="evaluation worker processes")
+    parser.add_argument("--out", default="outputs/bench/bc_inputs")
+    args = parser.parse_args(argv)
+    names = [v for v in args.variants.split(",") if v]
+    unknown = [v for v in names if v not in VARIANTS]
+    if unknown:
+        parser.error(f"unknown variants {unknown}; valid: {', '.join(VARIANTS)}")
+    objects = tuple(args.objects.split(",")) if args.objects else None
+    seeds = [int(s) for s in args.seeds.split(",")]
+    out, dataset = Path(args.out), Path(args.dataset)
+    summary = {"dataset": str(dataset), "skill": args.skill, "steps": args.steps, "eval_seed": args.eval_seed, "objects": objects,
+               "episodes_per_object": args.episodes, "variants": {}}
+    for name in names:
+        rows = []
+        for seed in seeds:
+            run = out / "runs" / f"{name}_seed{seed}"
+            ckpt, train_s = train(name, dataset, run, args.steps, seed)
+            row = {"seed": seed, "train_s": train_s, "checkpoint": str(ckpt),
+                   "held_out": score(ckpt, args.setting, args.skill, objects, args.episodes, args.eval_seed, args.workers,
+                                     out / "eval" / f"{name}_seed{seed}")}
+            if args.train_seed is not None:
+                row["training_starts"] = score(ckpt, args.setting, args.skill, objects, args.train_episodes,
+                                               args.train_seed, args.workers, out / "eval" / f"{name}_seed{seed}_train")
+            rows.append(row)
+            h = row["held_out"]
+            print(f"{name:<18} seed {seed}: held-out {h['successes']}/{h['n']}"
+                  + (f", training starts {row['training_starts']['successes']}/{row['training_starts']['n']}"
+                     if "training_starts" in row else "") + f"  (train {train_s:.0f} s)", flush=True)
+        summary["variants"][name] = {"config": VARIANTS[name], "runs": rows}
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bc_inputs.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"wrote {out / 'bc_inputs.json'}")
+    return summary
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

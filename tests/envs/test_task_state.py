@@ -1,0 +1,105 @@
+"""The task state (`observations.TASK_STATE_FIELDS`) against a hand computation for known poses: relative goal
+vectors in the world and heading frames, the heading error with the object's symmetry, the flight state."""
+
+import math
+
+import gymnasium as gym
+import pytest
+import torch
+
+import aerobench.envs  # noqa: F401  (registers the envs)
+from aerobench.envs.objects import get_object
+from aerobench.envs.observations import field_slices, task_state_fields, wrap_to_period
+
+
+def _rz(yaw: float, v) -> torch.Tensor:
+    c, s = math.cos(yaw), math.sin(yaw)
+    x, y, z = (float(t) for t in v)
+    return torch.tensor([c * x - s * y, s * x + c * y, z])
+
+
+def _fields(ts: torch.Tensor, with_arm: bool = False) -> dict[str, torch.Tensor]:
+    return {name: ts[sl] for name, sl in field_slices(task_state_fields(with_arm)).items()}
+
+
+def _move_drone(base, position: torch.Tensor, yaw: float) -> dict[str, torch.Tensor]:
+    idx = torch.tensor([0], device=base.device)
+    base.set_drone(idx, position[None].to(base.device), torch.tensor([yaw], device=base.device))
+    base._signals_step = -1  # the poses changed without a step: recompute the step's signals
+    return _fields(base.task_state()[0].cpu())
+
+
+@pytest.fixture(scope="module")
+def pick_env():
+    env = gym.make("AeroPick-v1", setting="TidyHouse", obs_mode="state_dict", object="cracker_box")
+    yield env
+    env.close()
+
+
+def test_pick_task_state_equals_a_hand_computation(pick_env):
+    base = pick_env.unwrapped
+    pick_env.reset(seed=5, options={"reconfigure": True})
+    platform, spec = base.platform, get_object("cracker_box")
+    obj_p, obj_q = base.target.pose.p[0].cpu(), base.target.pose.q[0].cpu()
+    obj_yaw = 2 * math.atan2(float(obj_q[3]), float(obj_q[0]))
+    start_yaw = float(base.agent.airframe_state().yaw[0])
+    # the planned grasp heading: closing axis (body y) along the box's x axis, the one nearer the start heading
+    planned = float(base.evaluators[0].heading[0])
+    assert abs(float(wrap_to_period(torch.tensor(planned - obj_yaw - math.pi / 2), math.pi))) < 1e-5
+    assert abs(float(wrap_to_period(torch.tensor(planned - start_yaw), 2 * math.pi))) <= math.pi / 2 + 1e-5
+
+    position, yaw = obj_p + torch.tensor([0.1, -0.2, 0.5]), planned + 0.3
+    f = _move_drone(base, position, yaw)
+    tcp = position + _rz(yaw, platform.grasp_point_m)
+    grasp = obj_p + _rz(obj_yaw, spec.grasp_point_m)
+    assert torch.equal(f["skill"], torch.tensor([1.0, 0, 0, 0, 0]))
+    assert torch.allclose(f["goal_pos"], grasp - tcp, atol=1e-4)
+    assert torch.allclose(f["goal_pos_body"], _rz(-yaw, grasp - tcp), atol=1e-4)
+    assert torch.allclose(f["tcp_to_obj_pos"], obj_p - tcp, atol=1e-4)
+    assert f["heading_error"].item() == pytest.approx(-0.3, abs=1e-4)
+    assert f["progress"].item() == pytest.approx(0.0, abs=5e-3)  # the box rests where it was put
+    assert f["is_grasp_confirmed"].item() == 0.0
+    assert torch.allclose(f["linear_velocity"], torch.zeros(3), atol=1e-5)  # set_drone leaves it still and level
+    assert torch.allclose(f["gravity_body_xy"], torch.zeros(2), atol=1e-5)
+    assert f["altitude"].item() == pytest.approx(float(position[2] - base.workspace_lo[0, 2]), abs=1e-4)
+
+    # a box is symmetric under a half turn: 0.3 rad past the other grasp heading reads the same error
+    f = _move_drone(base, position, planned + math.pi + 0.3)
+    assert f["heading_error"].item() == pytest.approx(-0.3, abs=1e-4)
+
+
+def test_a_round_objects_heading_error_wraps_at_a_quarter_turn():
+    env = gym.make("AeroPick-v1", setting="TidyHouse", obs_mode="state_dict", object="master_chef_can")
+    try:
+        base = env.unwrapped
+        env.reset(seed=2, options={"reconfigure": True})
+        planned = float(base.evaluators[0].heading[0])
+        assert abs(float(wrap_to_period(torch.tensor(planned), math.pi / 2))) < 1e-5  # a room axis
+        f = _move_drone(base, base.target.pose.p[0].cpu() + torch.tensor([0.0, 0.3, 0.5]), planned + 0.9)
+        assert f["heading_error"].item() == pytest.approx(math.pi / 2 - 0.9, abs=1e-4)
+    finally:
+        env.close()
+
+
+def test_place_goal_is_measured_from_the_held_object():
+    env = gym.make("AeroPlace-v1", setting="TidyHouse", obs_mode="state_dict", object="tomato_soup_can")
+    try:
+        base = env.unwrapped
+        env.reset(seed=1, options={"reconfigure": True})
+        f = _fields(base.task_state()[0].cpu())
+        goal, obj = base.evaluators[0].goal[0].cpu(), base.target.pose.p[0].cpu()
+        tcp = base.agent.tcp_pose.p[0].cpu()
+        assert torch.equal(f["skill"], torch.tensor([0.0, 1, 0, 0, 0]))
+        assert torch.allclose(f["goal_pos"], goal - obj, atol=1e-5)
+        assert torch.allclose(f["tcp_to_obj_pos"], obj - tcp, atol=1e-5)
+        assert f["heading_error"].item() == pytest.approx(0.0, abs=1e-5)  # place holds the start heading
+        # the episode starts in an eligible held state: the grasp reads confirmed from the start and while the jaws
+        # keep pinching; opening them clears it
+        assert f["is_grasp_confirmed"].item() == 1.0
+        confirmed = []
+        for u_g in [-1.0] * 6 + [1.0] * 10:
+            env.step(torch.tensor([[0.0, 0.0, 0.0, 0.0, u_g]]))
+            confirmed.append(_fields(base.task_state()[0].cpu())["is_grasp_confirmed"].item())
+        assert confirmed[:6] == [1.0] * 6 and confirmed[-1] == 0.0
+    finally:
+        env.close()

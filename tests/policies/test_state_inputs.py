@@ -1,0 +1,69 @@
+"""What the state policies read (`policies.inputs`) and how their gripper head acts (`policies.learned`)."""
+
+import pytest
+import torch
+
+from aerobench.envs.observations import STATE_DIM, TASK_STATE_DIM
+from aerobench.policies.inputs import FINGER_FIELDS, FrameHistory, InputSpec
+from aerobench.policies.learned import Normalizer, env_action, identity_stats, normalization_stats
+from aerobench.train.bc import gripper_targets
+
+
+def test_the_default_inputs_are_the_task_state_without_any_finger_value():
+    state = torch.arange(STATE_DIM, dtype=torch.float32)[None].repeat(2, 1)
+    task = 100 + torch.arange(TASK_STATE_DIM, dtype=torch.float32)[None].repeat(2, 1)
+    spec = InputSpec(task_fields=tuple(n for n in InputSpec().task_fields if n != "arm_position"))
+    assert torch.equal(spec.frame(state, task), task)
+    fingers = InputSpec(state_fields=FINGER_FIELDS, task_fields=("heading_error", "altitude"))
+    # proprio 15-18 (finger positions and velocities), then task state 14 and 25
+    assert fingers.frame(state, task)[0].tolist() == [15, 16, 17, 18, 114, 125]
+
+
+def test_bad_field_names_and_platform_mismatches_are_one_line_errors():
+    with pytest.raises(ValueError, match="unknown task state fields \\['tcp_position'\\]"):
+        InputSpec(task_fields=("tcp_position",))
+    with pytest.raises(ValueError, match="unknown proprio state fields"):
+        InputSpec(state_fields=("fingers",))
+    with pytest.raises(ValueError, match="at least one"):
+        InputSpec(task_fields=())
+    with pytest.raises(ValueError, match="gripper platform's observations have no \\['arm_position'\\]"):
+        InputSpec(task_fields=("arm_position",)).frame(torch.zeros(1, STATE_DIM), torch.zeros(1, TASK_STATE_DIM))
+
+
+def test_history_repeats_an_episodes_first_frame_and_never_crosses_episodes():
+    spec = InputSpec(task_fields=("altitude",), history=3)
+    frames = torch.tensor([[1.0], [2.0], [3.0], [10.0], [11.0]])
+    episodes = torch.tensor([0, 0, 0, 1, 1])
+    stacked = spec.stack_episodes(frames, episodes)
+    assert stacked.tolist() == [[1, 1, 1], [2, 1, 1], [3, 2, 1], [10, 10, 10], [11, 10, 10]]
+    # acting: the same stacking, frame by frame, and a reset env starts over
+    history = FrameHistory(3)
+    got = [history.push(frames[i : i + 1])[0].tolist() for i in range(3)]
+    assert got == stacked[:3].tolist()
+    assert history.peek(torch.tensor([[9.0]]))[0].tolist() == [9, 3, 2]  # a peek does not enter the history
+    history.reset(torch.tensor([0]))
+    assert history.push(frames[3:4])[0].tolist() == [10, 10, 10]
+    assert history.push(frames[4:5])[0].tolist() == [11, 10, 10]
+
+
+def test_the_binary_gripper_sends_minus_one_or_plus_one_and_the_flight_dims_are_unnormalized():
+    stats = identity_stats(3, 5)
+    stats["action_mean"], stats["action_std"] = [0.1, 0.0, 0.0, 0.0, 0.0], [2.0, 1.0, 1.0, 1.0, 1.0]
+    norm = Normalizer(stats)
+    out = torch.tensor([[0.2, 5.0, -0.3, 0.0, 3.0], [0.2, 0.0, 0.0, 0.0, -0.5]])
+    action = env_action(out, norm, "binary")
+    assert action[:, -1].tolist() == [-1.0, 1.0]  # logit > 0: close (u_g = -1)
+    assert action[0, :4].tolist() == pytest.approx([0.5, 1.0, -0.3, 0.0])  # 0.2 * 2 + 0.1; 5.0 clamped to 1
+    assert env_action(out, norm, "binary", close=torch.tensor([0.0, 1.0]))[:, -1].tolist() == [1.0, -1.0]
+    assert env_action(out, norm, "continuous")[:, -1].tolist() == [1.0, -0.5]
+
+
+def test_close_onsets_are_weighted_and_the_gripper_is_not_normalized():
+    u_g = torch.tensor([1.0, 1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+    episodes = torch.tensor([0, 0, 0, 0, 0, 1, 1])  # episode 1 starts closed (a place start): not a switch
+    actions = torch.cat([torch.randn(7, 4), u_g[:, None]], -1)
+    close, weight = gripper_targets(actions, episodes, onset_weight=10.0)
+    assert close.tolist() == [0, 0, 1, 1, 0, 1, 1]
+    assert weight.tolist() == [1, 1, 10, 1, 10, 1, 1]
+    stats = normalization_stats(torch.randn(7, 3), actions, "binary")
+    assert (stats["action_mean"][-1], stats["action_std"][-1]) == (0.0, 1.0)
