@@ -2,12 +2,16 @@
 one design choice each, with two training seeds (docs/experiments.md, "Why BC learned nothing").
 
 Every variant trains `aerobench.train.bc` on the same demonstrations (`--dataset`, an aerobench export with the
-task state) for the same steps and is scored by `aerobench.eval` on the same held-out starts (`--eval-seed`, a seed
-the demonstrations were not generated with), optionally also on starts of its own training data
-(`--train-seed`). Writes `bc_inputs.json` (every number) under `--out`; rerunning the same command reuses finished
-checkpoints and evaluations.
+task state; without one, `--demos` state-only expert episodes of `--objects` are generated first, with seed 0) for
+the same steps and is scored by `aerobench.eval` on the same held-out starts (`--eval-seed`, a seed the
+demonstrations were not generated with), optionally also on starts of its own training data (`--train-seed`).
+Writes `bc_inputs.json` (every number) under `--out`; rerunning the same command reuses finished checkpoints and
+evaluations. With no arguments it is a small CPU budget (`make bench`: 32 demonstrations of the master chef can,
+the shipped design against no heading error, 3000 steps, 5 held-out episodes per training seed).
 
-    python bench/bc_inputs.py --dataset outputs/data/pick_mcc --objects master_chef_can --out outputs/bench/bc_inputs
+    python bench/bc_inputs.py                                              # small budget
+    python bench/bc_inputs.py --dataset outputs/data/pick_mcc --variants default,history_1,finger_inputs \
+        --steps 20000 --episodes 20 --out outputs/bench/bc_inputs          # docs/experiments.md
 """
 
 from __future__ import annotations
@@ -31,18 +35,22 @@ def _without(*fields: str) -> tuple[str, ...]:
     return tuple(f for f in GRIPPER_TASK_FIELDS if f not in fields)
 
 
-# One design choice each, against "default" (the shipped BC: the whole task state, no proprio field, a binary
-# gripper head). Values are BCConfig fields.
+# One design choice each. "default" is the shipped BC (BCConfig's defaults: the whole task state, no proprio field,
+# a binary gripper head, 3 frames); "history_1" drops the history, and the single-factor ablations below change one
+# more thing against "history_1" (they were measured before the history became the default). Values are BCConfig
+# fields.
+MARKOV = {"history": 1}
 VARIANTS: dict[str, dict] = {
     "default": {},
-    "finger_inputs": {"state_fields": FINGER_FIELDS},  # the proprio finger position and velocity, as before
-    "regressed_gripper": {"gripper": "continuous"},  # the gripper regressed with the flight dims (MSE)
-    "no_heading_error": {"task_fields": _without("heading_error")},
-    "no_grasp_flag": {"task_fields": _without("is_grasp_confirmed")},
-    "absolute_position": {"state_fields": ("position",)},  # + the airframe's absolute position
-    "world_frame_only": {"task_fields": _without("goal_pos_body")},
-    "history_3": {"history": 3},
-    "finger_inputs_regressed_gripper": {"state_fields": FINGER_FIELDS, "gripper": "continuous"},  # the old design
+    "history_1": MARKOV,
+    "history_5": {"history": 5},
+    "finger_inputs": {**MARKOV, "state_fields": FINGER_FIELDS},  # + proprio finger position and velocity
+    "regressed_gripper": {**MARKOV, "gripper": "continuous"},  # the gripper regressed with the flight dims (MSE)
+    "finger_inputs_regressed_gripper": {**MARKOV, "state_fields": FINGER_FIELDS, "gripper": "continuous"},
+    "no_heading_error": {**MARKOV, "task_fields": _without("heading_error")},
+    "no_grasp_flag": {**MARKOV, "task_fields": _without("is_grasp_confirmed")},
+    "absolute_position": {**MARKOV, "state_fields": ("position",)},  # + the airframe's absolute position
+    "world_frame_only": {**MARKOV, "task_fields": _without("goal_pos_body")},
 }
 
 
@@ -77,16 +85,32 @@ def score(checkpoint: Path, setting: str, skill: str, objects: tuple[str, ...] |
     return {"successes": k, "n": n, "modes": modes, "seen_in_training": results["provenance"]["seen_in_training"]}
 
 
+def generate(args, objects: tuple[str, ...] | None, root: Path) -> Path:
+    """`args.demos` state-only expert episodes (seed 0, successes kept) in `args.workers` processes."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    import learning_curves as lc
+
+    budget = lc.Budget(setting=args.setting, skill=args.skill, objects=objects, rollouts_per_round=args.demos,
+                       workers=args.workers)
+    print(f"{args.demos} expert {args.skill} demonstrations -> {root}", flush=True)
+    r = lc.collect_round(budget, 0, root)
+    print(f"  {r['successes']}/{r['episodes']} successful, {r['transitions']} transitions", flush=True)
+    return root
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--dataset", required=True, help="aerobench export of expert demonstrations of --skill")
+    parser.add_argument("--dataset", default=None, help="aerobench export of expert demonstrations of --skill "
+                        "(default: generate --demos episodes into OUT/data)")
+    parser.add_argument("--demos", type=int, default=32, help="expert episodes to generate when no --dataset is given")
     parser.add_argument("--setting", default="TidyHouse")
     parser.add_argument("--skill", default="pick", help="the skill the demonstrations show (pick or place)")
-    parser.add_argument("--objects", default=None, help="comma-separated evaluation objects (default: the setting's)")
-    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of: {', '.join(VARIANTS)}")
+    parser.add_argument("--objects", default="master_chef_can", help="comma-separated objects of the evaluation (and "
+                        "of generated demonstrations); 'all': the setting's")
+    parser.add_argument("--variants", default="default,no_heading_error", help=f"comma-separated, of: {', '.join(VARIANTS)}")
     parser.add_argument("--seeds", default="0,1", help="training seeds")
-    parser.add_argument("--steps", type=int, default=20_000, help="BC gradient steps")
-    parser.add_argument("--episodes", type=int, default=20, help="held-out episodes per object")
+    parser.add_argument("--steps", type=int, default=3000, help="BC gradient steps")
+    parser.add_argument("--episodes", type=int, default=5, help="held-out episodes per object")
     parser.add_argument("--eval-seed", type=int, default=1, help="held-out starts (not the data's generation seed)")
     parser.add_argument("--train-seed", type=int, default=None, help="also score on starts of this seed (the data's)")
     parser.add_argument("--train-episodes", type=int, default=10, help="episodes per object on the training starts")
@@ -97,9 +121,10 @@ def main(argv: list[str] | None = None) -> dict:
     unknown = [v for v in names if v not in VARIANTS]
     if unknown:
         parser.error(f"unknown variants {unknown}; valid: {', '.join(VARIANTS)}")
-    objects = tuple(args.objects.split(",")) if args.objects else None
+    objects = None if args.objects == "all" else tuple(args.objects.split(","))
     seeds = [int(s) for s in args.seeds.split(",")]
-    out, dataset = Path(args.out), Path(args.dataset)
+    out = Path(args.out)
+    dataset = Path(args.dataset) if args.dataset else generate(args, objects, out / "data" / f"{args.skill}_{args.demos}")
     summary = {"dataset": str(dataset), "skill": args.skill, "steps": args.steps, "eval_seed": args.eval_seed, "objects": objects,
                "episodes_per_object": args.episodes, "variants": {}}
     for name in names:

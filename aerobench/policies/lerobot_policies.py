@@ -136,7 +136,8 @@ class LeRobotPolicy:
     def batch(self, obs) -> dict:
         """The checkpoint's input features from an aerobench observation `(N, ...)`."""
         n = self.env.num_envs
-        out: dict = {"task": [self.env.get_instruction(i) for i in range(n)]}
+        # observation.state is always passed: LeRobot's ACT reads its device even when it is not an input feature
+        out: dict = {"task": [self.env.get_instruction(i) for i in range(n)], "observation.state": obs["agent"]["state"].float()}
         for key in self.inputs:
             if key == "observation.state":
                 out[key] = obs["agent"]["state"].float()

@@ -62,7 +62,8 @@ class BCConfig:
                                           "(envs.observations.STATE_FIELDS, e.g. finger_position)"})
     task_fields: tuple[str, ...] | None = field(default=None, metadata={"help": "task state fields to read "
                                                 "(observation.environment_state; default: all of the platform's)"})
-    history: int = field(default=1, metadata={"help": "input frames: the current one and history-1 before it"})
+    history: int = field(default=3, metadata={"help": "input frames: the current one and history-1 before it "
+                         "(the expert waits for the drone to settle before it descends, closes or opens)"})
     gripper: str = field(default="binary", metadata={"help": "gripper head: binary (open/close classification) "
                          "or continuous (regressed with the other dimensions)"})
     gripper_weight: float = field(default=1.0, metadata={"help": "weight of the gripper's classification loss"})

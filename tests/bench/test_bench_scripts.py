@@ -1,5 +1,6 @@
-"""The data-generation benches (`bench/learning_curves.py`, `bench/diversity.py`) end to end with tiny budgets: real
-expert rollouts, real BC and PPO training, held-out evaluation, JSON and PNG; plus their pure helpers."""
+"""The data-generation benches (`bench/learning_curves.py`, `bench/diversity.py`, `bench/bc_inputs.py`) end to end
+with tiny budgets: real expert rollouts, real BC and PPO training, held-out evaluation, JSON and PNG; plus their pure
+helpers."""
 
 import json
 import math
@@ -12,6 +13,7 @@ import pytest
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 sys.path.insert(0, str(BENCH))
 
+import bc_inputs  # noqa: E402
 import diversity  # noqa: E402
 import learning_curves  # noqa: E402
 
@@ -126,3 +128,24 @@ def test_diversity_end_to_end(learning_curves_run, tmp_path):
         assert all(math.isfinite(t[p]) and t[p] >= 0 for p in diversity.PHASES)
         assert t["total"] == pytest.approx(np.mean(expert["success_lengths_s"]))
     assert summary["policies"] == saved["policies"]
+
+
+def test_bc_inputs_bench_trains_and_scores_each_variant_once(tmp_path):
+    """One generated demonstration, two variants x one seed, one held-out episode each; a rerun runs nothing new."""
+    args = ["--demos", "1", "--steps", "20", "--episodes", "1", "--seeds", "0", "--workers", "1",
+            "--variants", "default,no_heading_error", "--out", str(tmp_path)]
+    summary = bc_inputs.main(args)
+    saved = json.loads((tmp_path / "bc_inputs.json").read_text())
+    assert list(saved["variants"]) == ["default", "no_heading_error"] and saved["skill"] == "pick"
+    for name, variant in saved["variants"].items():
+        (run,) = variant["runs"]
+        assert run["held_out"]["n"] == 1 and 0 <= run["held_out"]["successes"] <= 1
+        assert run["held_out"]["seen_in_training"]["episodes"] == 0  # data seed 0, evaluation seed 1
+        config = json.loads((Path(run["checkpoint"]) / "config.json").read_text())
+        assert ("heading_error" in config["model"]["inputs"]["task_fields"]) == (name == "default")
+    records = sorted(tmp_path.glob("eval/*/records.jsonl"))
+    before = {p: p.read_text() for p in records}
+    assert bc_inputs.main(args)["variants"].keys() == summary["variants"].keys()
+    assert {p: p.read_text() for p in records} == before
+    with pytest.raises(SystemExit):
+        bc_inputs.main(["--variants", "telepathy", "--out", str(tmp_path / "x")])
