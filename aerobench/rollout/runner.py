@@ -65,6 +65,10 @@ class RolloutSpec:
             setting.check_object(obj)
         if not (isinstance(self.episodes, int) and self.episodes > 0):
             raise ValueError(f"--episodes must be a positive integer, got {self.episodes}")
+        last_seed = (2**32 - self.episodes) // SEED_STRIDE  # numpy / SAPIEN seeds are 32-bit
+        if not (isinstance(self.seed, int) and 0 <= self.seed <= last_seed):
+            raise ValueError(f"--seed must be between 0 and {last_seed} (episode i runs with seed * {SEED_STRIDE} + i, "
+                             f"which must fit in 32 bits), got {self.seed}")
         i, k = self.shard
         if not (k >= 1 and 0 <= i < k):
             raise ValueError(f"--shard must be i/k with 0 <= i < k, got {i}/{k}")

@@ -56,7 +56,7 @@ def test_worker_processes_record_the_same_episodes_as_one_process(tiny_eval, tmp
     def outcome(r):
         return r["episode_index"], r["seed"], r["object"], r["skill"], r["outcome"], r["mode"], r["steps"]
 
-    parallel = sorted((outcome(r) for rows in shards for r in rows))
+    parallel = sorted(outcome(r) for rows in shards for r in rows)
     assert parallel == sorted(outcome(r) for r in read_records(out / "records.jsonl"))
     assert results["cells"] == serial["cells"]
     # rerunning the command finds every shard complete and runs nothing

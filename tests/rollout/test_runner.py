@@ -47,6 +47,8 @@ def test_plans_are_deterministic_balanced_and_sharded():
         (dict(skills=("pick",), num_envs=4), "physx_cpu runs one env per process"),
         (dict(skills=("pick",), objects=("package",)), "object 'package' is not part of TidyHouse"),
         (dict(skills=("pick",), episodes=0), "--episodes must be a positive integer"),
+        (dict(skills=("pick",), seed=5000), "--seed must be between 0 and 4294 (episode i runs with seed"),
+        (dict(skills=("pick",), seed=-1), "--seed must be between 0 and 4294"),
     ],
 )
 def test_spec_errors(kwargs, message):
