@@ -13,6 +13,9 @@ atexit.register(shutil.rmtree, _cache, ignore_errors=True)
 os.environ.setdefault("XDG_CACHE_HOME", _cache)
 os.environ.setdefault("MPLCONFIGDIR", os.path.join(_cache, "matplotlib"))
 os.environ.setdefault("HF_HOME", os.path.join(_cache, "huggingface"))
+# The eager physics step (same numbers) in every test process and the subprocesses it starts: loading the compiled
+# step costs each new process seconds; tests/envs/control/test_fused.py checks the compiled step against it.
+os.environ.setdefault("AEROBENCH_COMPILE", "0")
 logging.getLogger("mani_skill").setLevel(logging.ERROR)
 
 import pytest  # noqa: E402

@@ -16,6 +16,7 @@ sys.path.insert(0, str(BENCH))
 import bc_inputs  # noqa: E402
 import diversity  # noqa: E402
 import learning_curves  # noqa: E402
+import step_cost  # noqa: E402
 
 from aerobench.rollout.episode import EVENT_FLAGS  # noqa: E402
 
@@ -149,3 +150,15 @@ def test_bc_inputs_bench_trains_and_scores_each_variant_once(tmp_path):
     assert {p: p.read_text() for p in records} == before
     with pytest.raises(SystemExit):
         bc_inputs.main(["--variants", "telepathy", "--out", str(tmp_path / "x")])
+
+
+def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["step_cost.py", "--steps", "3", "--episodes", "1", "--no-cameras"])
+    step_cost.main()
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line.startswith("(")]
+    assert [r.split()[0] for r in rows] == ["(b)", "(c)", "(d)", "(d)", "(d)", "(d)", "(a)"]
+    for row in rows[1:-1]:  # ms/step, bare ms, ratio: measured, positive, and consistent with each other
+        ours, bare, ratio = float(row.split()[-3]), float(row.split()[-2]), float(row.split()[-1].rstrip("x"))
+        assert ours > 0 and bare > 0 and ratio == pytest.approx(ours / bare, rel=0.05)
+    assert "expert Pick episodes per minute on one core" in out and "(1/1 successful" in out

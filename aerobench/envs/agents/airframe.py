@@ -19,6 +19,7 @@ from sapien.wrapper.articulation_builder import LinkBuilder
 
 from ..collision import ignore_self_collisions
 from ..control.payload import ControllerMode
+from ..control.so3 import quat_rotate
 from ..control.virtual_joints import VIRTUAL_JOINT_NAMES, AirframeState, airframe_state_from_joints
 from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
@@ -291,7 +292,9 @@ class AerialAgent(BaseAgent):
     @property
     def tcp_pose(self) -> Pose:
         """Tool centre point (grasp point): the link the fingers ride on, offset to the point between the pads."""
-        return self.grasp_link.pose * Pose.create_from_pq(p=self._tcp_offset_in_grasp_link, device=self.device)
+        link = self.grasp_link.pose  # the offset is a pure translation: rotate it, keep the link's orientation
+        offset = torch.as_tensor(self._tcp_offset_in_grasp_link, dtype=link.p.dtype, device=link.p.device)
+        return Pose.create_from_pq(p=link.p + quat_rotate(link.q, offset), q=link.q)
 
     _tcp_offset_in_grasp_link: tuple[float, float, float] = (0.0, 0.0, 0.0)
 

@@ -1,7 +1,8 @@
 """ManiSkill controller that flies the airframe (and drives the arm) with the pure torch controller.
 
-At every physics step (240 Hz) it reads the six virtual joints, runs `flight_step`, and applies the rotor wrench as
-joint efforts Q = J^T W; on the arm platform it adds the arm servo torques and the arm weight-moment feedforward.
+At every physics step (240 Hz) it reads the six virtual joints, runs the flight controller, and applies the rotor
+wrench as joint efforts Q = J^T W; on the arm platform it adds the arm servo torques and the arm weight-moment
+feedforward. That per-physics-step work is one fused call (`control.fused`: compiled, no host synchronization).
 Its action is `[u_x, u_y, u_z, u_psi]` (+ three arm-joint targets) in [-1, 1]; the gripper is a separate ManiSkill
 PD mimic controller combined after it.
 """
@@ -15,15 +16,10 @@ import torch
 from gymnasium import spaces
 from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
 
-from ..control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
-from ..control.flight import FlightMemory, FlightOutput, FlightParams, flight_step
+from ..control.flight import FlightMemory, FlightOutput
+from ..control.fused import fused_physics_step
 from ..control.payload import ControllerMode, update_payload_estimate
-from ..control.virtual_joints import (
-    NUM_VIRTUAL_JOINTS,
-    AirframeState,
-    airframe_state_from_joints,
-    joint_efforts_from_wrench,
-)
+from ..control.virtual_joints import AirframeState
 from ..platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PlatformSpec
 
 
@@ -36,18 +32,21 @@ class AerialBodyController(BaseController):
         super().__init__(config, articulation, control_freq, sim_freq=sim_freq, scene=scene)
         platform = config.platform
         n = self.scene.num_envs
-        self.params = FlightParams.from_platform(platform, self.device)
+        self.step_fn = fused_physics_step(platform, self.device)
+        self.params, self.arm = self.step_fn.params, self.step_fn.arm
         self.mode = ControllerMode.parse(config.mode) if isinstance(config.mode, str) else config.mode
         self.memory = FlightMemory.initial(n, self.params, self.device)
-        self.arm = ArmParams.from_spec(platform.arm, platform.gripper, self.device) if platform.arm else None
         self.velocity_cmd = torch.zeros(n, 3, device=self.device)
         self.yaw_rate_cmd = torch.zeros(n, device=self.device)
         working = platform.arm.working_pose_rad if platform.arm else ()
         self.arm_target = torch.tensor(working, dtype=torch.float32, device=self.device).expand(n, len(working)).clone()
         self.contact_mode = torch.zeros(n, dtype=torch.bool, device=self.device)
         self._needs_yaw_sync = torch.ones(n, dtype=torch.bool, device=self.device)
-        self.last_output: FlightOutput | None = None
-        self.last_state: AirframeState | None = None
+        self.last_result = None  # the fused step's StepResult and the joint state it read (last_output/last_state)
+        idx = self.active_joint_indices.tolist()
+        # the controller's joints lead the articulation's (fingers follow): plain slices, no gather/scatter per step
+        self._joints = slice(idx[0], idx[-1] + 1) if idx == list(range(idx[0], idx[-1] + 1)) else self.active_joint_indices
+        self._qf = None
         self.telemetry: list[dict[str, torch.Tensor]] | None = None  # set to [] to record every physics step
 
     # ----------------------------------------------------------------------------------------------------------------
@@ -90,35 +89,31 @@ class AerialBodyController(BaseController):
             self.arm_target = self.arm.lower + 0.5 * (action[:, 4:7] + 1.0) * (self.arm.upper - self.arm.lower)
 
     def before_simulation_step(self):
+        # No host synchronization in here (no .any(), .item() or branch on a tensor): on physx_cuda it would stall
+        # the whole batch at every physics step. tests/envs/control/test_fused.py checks it.
         px = self.scene.px
         if self.scene.gpu_sim_enabled:  # ManiSkill fetches once per control step; the loop needs every physics step
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
         q_all, qd_all = self.articulation.get_qpos(), self.articulation.get_qvel()
-        idx = self.active_joint_indices
-        q, qd = q_all[:, idx[:NUM_VIRTUAL_JOINTS]], qd_all[:, idx[:NUM_VIRTUAL_JOINTS]]
-        state = airframe_state_from_joints(q, qd)
-        if self._needs_yaw_sync.any():
-            self.memory.yaw_des = torch.where(self._needs_yaw_sync, state.yaw, self.memory.yaw_des)
-            self._needs_yaw_sync[:] = False
-
-        feedforward = None
-        efforts = [None]
+        q, qd = q_all[:, self._joints], qd_all[:, self._joints]
+        m = self.memory
+        tensors = [q, qd, self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w,
+                   self._needs_yaw_sync]
         if self.arm is not None:
-            q_arm, qd_arm = q_all[:, idx[NUM_VIRTUAL_JOINTS:]], qd_all[:, idx[NUM_VIRTUAL_JOINTS:]]
-            feedforward = arm_weight_feedforward_body(state.rotation, q_arm, self.arm, self.params.gravity)
-            feedforward = torch.where(self.contact_mode[:, None], torch.zeros_like(feedforward), feedforward)
-            efforts.append(arm_servo_torques(q_arm, qd_arm, self.arm_target, self.arm, self.contact_mode))
-
-        out, self.memory = flight_step(state, self.velocity_cmd, self.yaw_rate_cmd, self.memory, self.params, feedforward)
-        efforts[0] = joint_efforts_from_wrench(q, out.force_world, out.torque_world)
-        qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
-        qf[:, idx] = torch.cat(efforts, dim=-1).to(qf.dtype)
-        self.articulation.set_qf(qf)
+            tensors += [self.arm_target, self.contact_mode]
+        result = self.step_fn(*tensors)
+        m.xi, m.yaw_des = result.xi, result.yaw_des
+        self._needs_yaw_sync.zero_()
+        if self._qf is None or self._qf.shape != q_all.shape:
+            self._qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
+        self._qf[:, self._joints] = result.efforts
+        self.articulation.set_qf(self._qf)
         if self.scene.gpu_sim_enabled:
             px.gpu_apply_articulation_qf()
-        self.last_output, self.last_state = out, state
+        self.last_result = (result, q, qd)
         if self.telemetry is not None:
+            out, state = self.last_output, self.last_state
             self.telemetry.append(
                 {
                     "position": state.position.clone(),
@@ -130,6 +125,14 @@ class AerialBodyController(BaseController):
                     "mass_hat": self.memory.mass_hat.clone(),
                 }
             )
+
+    @property
+    def last_output(self) -> FlightOutput | None:
+        return None if self.last_result is None else self.last_result[0].output()
+
+    @property
+    def last_state(self) -> AirframeState | None:
+        return None if self.last_result is None else self.last_result[0].state(*self.last_result[1:])
 
     def get_state(self) -> dict:
         m = self.memory

@@ -199,6 +199,41 @@ def rotor_wrench_world(
 # --------------------------------------------------------------------------------------------------------------------
 # One physics step
 # --------------------------------------------------------------------------------------------------------------------
+def flight_laws(
+    state: AirframeState,
+    velocity_cmd: torch.Tensor,
+    yaw_rate_cmd: torch.Tensor,
+    xi: torch.Tensor,
+    yaw_des: torch.Tensor,
+    mass_hat: torch.Tensor,
+    k_R: torch.Tensor,
+    k_w: torch.Tensor,
+    params: FlightParams,
+    torque_feedforward_body: torch.Tensor | None = None,
+) -> tuple[FlightOutput, torch.Tensor, torch.Tensor]:
+    """The whole cascade once on plain tensors: what to apply, and the new integral xi and desired heading.
+
+    `torque_feedforward_body` is added to the attitude torque before the yaw limit and the allocation (the arm
+    platform's arm weight-moment feedforward). No branch depends on a tensor value (see `fused`).
+    """
+    g = params.gains
+    e_v, xi = velocity_error_and_integral(velocity_cmd, state.velocity, xi, params.dt, g.integral_limit)
+    f_des = desired_force(mass_hat, e_v, xi, g, params.gravity)
+    yaw_des = integrate_yaw(yaw_des, yaw_rate_cmd, params.dt)
+    R_des = desired_rotation(f_des, yaw_des)
+    R = state.rotation
+    omega_des = desired_angular_velocity(R, yaw_rate_cmd)
+    tau = attitude_torque(R, R_des, state.angular_velocity_body, omega_des, k_R, k_w)
+    if torque_feedforward_body is not None:
+        tau = tau + torque_feedforward_body
+    if g.yaw_torque_limit != float("inf"):
+        tau[..., 2].clamp_(-g.yaw_torque_limit, g.yaw_torque_limit)
+    T = collective_thrust(f_des, R)
+    rotor_thrusts = allocate_rotor_thrusts(T, tau, params.allocation_inverse, params.max_rotor_thrust)
+    force_world, torque_world = rotor_wrench_world(rotor_thrusts, R, params.allocation)
+    return FlightOutput(rotor_thrusts, force_world, torque_world, f_des, R_des, T, tau, e_v), xi, yaw_des
+
+
 def flight_step(
     state: AirframeState,
     velocity_cmd: torch.Tensor,
@@ -207,27 +242,9 @@ def flight_step(
     params: FlightParams,
     torque_feedforward_body: torch.Tensor | None = None,
 ) -> tuple[FlightOutput, FlightMemory]:
-    """Run the whole cascade once: returns what to apply and the updated controller memory.
-
-    `torque_feedforward_body` is added to the attitude torque before the yaw limit and the allocation (the arm
-    platform's arm weight-moment feedforward).
-    """
-    g = params.gains
-    e_v, xi = velocity_error_and_integral(velocity_cmd, state.velocity, memory.xi, params.dt, g.integral_limit)
-    f_des = desired_force(memory.mass_hat, e_v, xi, g, params.gravity)
-    yaw_des = integrate_yaw(memory.yaw_des, yaw_rate_cmd, params.dt)
-    R_des = desired_rotation(f_des, yaw_des)
-    R = state.rotation
-    omega_des = desired_angular_velocity(R, yaw_rate_cmd)
-    tau = attitude_torque(R, R_des, state.angular_velocity_body, omega_des, memory.k_R, memory.k_w)
-    if torque_feedforward_body is not None:
-        tau = tau + torque_feedforward_body
-    if g.yaw_torque_limit != float("inf"):
-        tau[..., 2].clamp_(-g.yaw_torque_limit, g.yaw_torque_limit)
-    T = collective_thrust(f_des, R)
-    rotor_thrusts = allocate_rotor_thrusts(T, tau, params.allocation_inverse, params.max_rotor_thrust)
-    force_world, torque_world = rotor_wrench_world(rotor_thrusts, R, params.allocation)
-    out = FlightOutput(rotor_thrusts, force_world, torque_world, f_des, R_des, T, tau, e_v)
+    """`flight_laws` with the controller memory: returns what to apply and the updated memory."""
+    out, xi, yaw_des = flight_laws(state, velocity_cmd, yaw_rate_cmd, memory.xi, memory.yaw_des, memory.mass_hat,
+                                   memory.k_R, memory.k_w, params, torque_feedforward_body)
     return out, replace(memory, xi=xi, yaw_des=yaw_des)
 
 
@@ -244,6 +261,7 @@ __all__ = [
     "desired_angular_velocity",
     "desired_force",
     "desired_rotation",
+    "flight_laws",
     "flight_step",
     "integrate_yaw",
     "rotor_wrench_world",

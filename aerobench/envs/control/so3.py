@@ -61,6 +61,13 @@ def quat_wxyz_to_matrix(q: torch.Tensor) -> torch.Tensor:
     ).reshape(*q.shape[:-1], 3, 3)
 
 
+def quat_rotate(q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """Rotate `v` `(..., 3)` by the unit quaternion `q` `(..., 4)` (wxyz): v + 2w (u x v) + 2 u x (u x v)."""
+    w, u = q[..., :1], q[..., 1:]
+    uv = torch.linalg.cross(u, v.expand_as(u))
+    return v + 2.0 * (w * uv + torch.linalg.cross(u, uv))
+
+
 def matrix_to_quat_wxyz(R: torch.Tensor) -> torch.Tensor:
     """Shepperd's method, branch-free enough for batches: picks the best-conditioned of the four forms."""
     m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]

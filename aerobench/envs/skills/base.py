@@ -41,7 +41,7 @@ from ..checks import (
 )
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
-from ..control.so3 import quat_wxyz_to_matrix
+from ..control.so3 import quat_rotate, quat_wxyz_to_matrix
 from ..control.virtual_joints import AirframeState
 from ..geometry import (
     body_points_to_world,
@@ -389,17 +389,18 @@ class AeroSkillEnv(AerialEnv):
     def place_distractors(self, env_idx: torch.Tensor, avoid: torch.Tensor, kinds: tuple[str, ...]) -> None:
         """Distractors on random supports, away from `avoid` `(M, 3)` (the target) and from each other."""
         placed = [avoid]
-        for actor in self.distractors:
+        nowhere = torch.full((len(env_idx), 3), 1e6, device=self.device)  # a parked distractor blocks no spot
+        for i, actor in enumerate(self.distractors):
             index, ok = self.sample_supports(env_idx, kinds)
-            best = None
-            for _ in range(8):  # a few tries; the last one stands
+            parked = torch.tensor([0.0, 0.0, PARKING_DEPTH_M - i], device=self.device).expand(len(env_idx), 3)
+            best, found = parked, torch.zeros(len(env_idx), dtype=torch.bool, device=self.device)
+            for _ in range(8):  # a few tries, the last clear one stands; with none it stays parked, never on the goal
                 point = self.sample_on_support(env_idx, index, torch.full((len(env_idx),), 0.12, device=self.device))
                 clear = torch.stack([torch.linalg.norm((point - p)[:, :2], dim=-1) for p in placed]).min(0).values > 0.25
-                best = point if best is None else torch.where((clear & ok)[:, None], point, best)
-            parked = torch.tensor([0.0, 0.0, PARKING_DEPTH_M], device=self.device).expand_as(best)
-            best = torch.where(ok[:, None], best, parked)
+                best = torch.where((clear & ok)[:, None], point, best)
+                found |= clear & ok
             self.place_object(actor, env_idx, best, (torch.rand(len(env_idx), device=self.device) * 2 - 1) * math.pi)
-            placed.append(best)
+            placed.append(torch.where(found[:, None], best, nowhere))
 
     # ----------------------------------------------------------------------------------------------------------------
     # Episode
@@ -446,9 +447,9 @@ class AeroSkillEnv(AerialEnv):
         readout = self.contacts.read()
         finger_idx = [self.monitored_links.index(n) for n in FINGER_JOINT_NAMES]
         airframe_idx = self.monitored_links.index("airframe")
+        e_y = torch.tensor([0.0, 1.0, 0.0], device=self.device)  # a finger closes along its link's y axis
         opening_dirs = torch.stack(
-            [sign * link.pose.to_transformation_matrix()[..., :3, 1] for link, sign in zip(self.agent.finger_links, (1.0, -1.0))],
-            dim=1,
+            [sign * quat_rotate(link.pose.q, e_y) for link, sign in zip(self.agent.finger_links, (1.0, -1.0))], dim=1
         )
         omega_world = (state.rotation @ state.angular_velocity_body[..., None])[..., 0]
         ctx = StepContext(

@@ -2,7 +2,7 @@
 
 import torch
 
-from aerobench.envs.control.so3 import matrix_to_euler_zyx, matrix_to_quat_wxyz, quat_wxyz_to_matrix, vee
+from aerobench.envs.control.so3 import matrix_to_euler_zyx, matrix_to_quat_wxyz, quat_rotate, quat_wxyz_to_matrix, vee
 from aerobench.envs.control.virtual_joints import airframe_state_from_joints, joint_efforts_from_wrench
 
 torch.manual_seed(1)
@@ -39,3 +39,13 @@ def test_rotation_helpers_round_trip():
     yaw, pitch, roll = matrix_to_euler_zyx(R)
     assert torch.allclose(torch.stack([yaw, pitch, roll], -1), torch.atan2(torch.sin(q[:, 3:]), torch.cos(q[:, 3:])))
     assert torch.allclose(quat_wxyz_to_matrix(matrix_to_quat_wxyz(R)), R, atol=1e-9)
+
+
+def test_quat_rotate_is_the_rotation_matrix_product():
+    g = torch.Generator().manual_seed(0)
+    q = torch.randn(64, 4, generator=g)
+    q = q / q.norm(dim=-1, keepdim=True)
+    v = torch.randn(64, 3, generator=g)
+    expected = (quat_wxyz_to_matrix(q) @ v[..., None])[..., 0]
+    torch.testing.assert_close(quat_rotate(q, v), expected, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(quat_rotate(q, torch.tensor([0.0, 1.0, 0.0])), quat_wxyz_to_matrix(q)[..., :, 1])

@@ -1,0 +1,159 @@
+"""One physics step of the airframe as a single fused kernel: joints in, joint efforts and telemetry out.
+
+`physics_step` chains the laws of `virtual_joints`, `flight` and `arm` (each stays a readable function, one per spec
+equation) with no Python branch on a tensor value and no tensor-to-Python conversion, so the same code is a
+CUDA-graph capturable step on physx_cuda and one compiled kernel on a CPU. With one env on a CPU the eager step is
+about 60 small torch ops whose dispatch, not arithmetic, is the cost; `fused_physics_step` returns the step compiled
+by `torch.compile` (inductor, whose on-disk cache makes later processes load it in seconds), shared by every env of
+the same platform in the process, and falls back to the eager function, reported once, where compilation fails.
+
+`AEROBENCH_COMPILE=0` forces the eager path; `AEROBENCH_COMPILE_MODE=reduce-overhead` asks inductor to capture the
+step in a CUDA graph on physx_cuda (docs/gpu.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable
+from typing import NamedTuple
+
+import torch
+
+from ..platforms import PlatformSpec
+from .arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
+from .flight import FlightOutput, FlightParams, flight_laws
+from .virtual_joints import NUM_VIRTUAL_JOINTS, AirframeState, airframe_state_from_joints, joint_efforts_from_wrench
+
+log = logging.getLogger(__name__)
+# Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
+# in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
+INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
+
+
+class StepResult(NamedTuple):
+    """What one fused step returns, as plain `(N, ...)` tensors."""
+
+    efforts: torch.Tensor  # (N, 6 [+ arm joints]) efforts of the controller's joints, in their order
+    xi: torch.Tensor  # the controller memory's new integral and desired heading
+    yaw_des: torch.Tensor
+    rotation: torch.Tensor  # the airframe state it read (position and velocity are slices of q and qd: an output
+    angular_velocity_body: torch.Tensor  # that aliases an input costs a compiled graph a slow path at every call)
+    rotor_thrusts: torch.Tensor  # FlightOutput's fields
+    force_world: torch.Tensor
+    torque_world: torch.Tensor
+    force_des: torch.Tensor
+    rotation_des: torch.Tensor
+    thrust: torch.Tensor
+    torque_body_cmd: torch.Tensor
+    velocity_error: torch.Tensor
+
+    def state(self, q: torch.Tensor, qd: torch.Tensor) -> AirframeState:
+        """The airframe state, given the joint positions and velocities the step read."""
+        return AirframeState(q[:, :3], qd[:, :3], self.rotation, self.angular_velocity_body)
+
+    def output(self) -> FlightOutput:
+        return FlightOutput(*self[5:])
+
+
+def physics_step(
+    q: torch.Tensor,
+    qd: torch.Tensor,
+    velocity_cmd: torch.Tensor,
+    yaw_rate_cmd: torch.Tensor,
+    xi: torch.Tensor,
+    yaw_des: torch.Tensor,
+    mass_hat: torch.Tensor,
+    k_R: torch.Tensor,
+    k_w: torch.Tensor,
+    needs_yaw_sync: torch.Tensor,
+    params: FlightParams,
+    arm: ArmParams | None = None,
+    arm_target: torch.Tensor | None = None,
+    contact_mode: torch.Tensor | None = None,
+) -> StepResult:
+    """Controller joint positions/velocities `(N, 6 [+3])` -> their efforts and the controller's new memory.
+
+    Envs flagged in `needs_yaw_sync` (just reset) take their current heading as the desired one, without a branch.
+    """
+    q_v, qd_v = q[:, :NUM_VIRTUAL_JOINTS], qd[:, :NUM_VIRTUAL_JOINTS]
+    state = airframe_state_from_joints(q_v, qd_v)
+    yaw_des = torch.where(needs_yaw_sync, state.yaw, yaw_des)
+    feedforward = arm_torques = None
+    if arm is not None:
+        q_arm, qd_arm = q[:, NUM_VIRTUAL_JOINTS:], qd[:, NUM_VIRTUAL_JOINTS:]
+        feedforward = arm_weight_feedforward_body(state.rotation, q_arm, arm, params.gravity)
+        feedforward = torch.where(contact_mode[:, None], torch.zeros_like(feedforward), feedforward)
+        arm_torques = arm_servo_torques(q_arm, qd_arm, arm_target, arm, contact_mode)
+    out, xi, yaw_des = flight_laws(state, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, params, feedforward)
+    efforts = joint_efforts_from_wrench(q_v, out.force_world, out.torque_world)
+    if arm_torques is not None:
+        efforts = torch.cat([efforts, arm_torques], dim=-1)
+    return StepResult(efforts, xi, yaw_des, state.rotation, state.angular_velocity_body,
+                      out.rotor_thrusts, out.force_world, out.torque_world, out.force_des, out.rotation_des, out.thrust,
+                      out.torque_body_cmd, out.velocity_error)
+
+
+def compile_requested() -> bool:
+    return os.environ.get("AEROBENCH_COMPILE", "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+class FusedPhysicsStep:
+    """`physics_step` for one platform, its parameters bound: call with the tensors only (the arm platform adds
+    `arm_target` and `contact_mode`). Compiled on first call; on any compiler failure the eager step, reported once.
+    `backend` says which runs: "compiled", "eager" (asked for) or "eager (fallback: <reason>)".
+    """
+
+    _reported: set[str] = set()
+
+    def __init__(self, platform: PlatformSpec, device: torch.device | str, compile: bool):
+        self.params = FlightParams.from_platform(platform, device)
+        self.arm = ArmParams.from_spec(platform.arm, platform.gripper, device) if platform.arm else None
+        self.backend = "not run yet" if compile else "eager"
+        self._compiled: Callable | None = None
+        mode = os.environ.get("AEROBENCH_COMPILE_MODE") or None
+        self.cuda_graphs = compile and mode is not None and "reduce-overhead" in mode and str(device).startswith("cuda")
+        if compile:
+            try:
+                self._compiled = torch.compile(self.eager, dynamic=False, fullgraph=True, mode=mode, options=INDUCTOR_OPTIONS)
+            except Exception as exc:  # noqa: BLE001 - e.g. no compiler backend: the eager step is the same function
+                self._fall_back(exc)
+
+    def eager(self, q, qd, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, needs_yaw_sync,
+              arm_target=None, contact_mode=None) -> StepResult:
+        return physics_step(q, qd, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, needs_yaw_sync,
+                            self.params, self.arm, arm_target, contact_mode)
+
+    def __call__(self, *tensors: torch.Tensor) -> StepResult:
+        if self._compiled is None:
+            return self.eager(*tensors)
+        if self.cuda_graphs:  # a captured graph reuses its output buffers at the next replay: keep copies
+            torch.compiler.cudagraph_mark_step_begin()
+        try:
+            result = self._compiled(*tensors)
+        except Exception as exc:  # noqa: BLE001
+            self._fall_back(exc)
+            return self.eager(*tensors)
+        self.backend = "compiled"
+        return StepResult(*(t.clone() for t in result)) if self.cuda_graphs else result
+
+    def _fall_back(self, exc: Exception) -> None:
+        first_line = str(exc).splitlines()[0] if str(exc) else ""
+        reason = f"{type(exc).__name__}: {first_line}"[:200]
+        self.backend, self._compiled = f"eager (fallback: {reason})", None
+        if reason not in FusedPhysicsStep._reported:
+            FusedPhysicsStep._reported.add(reason)
+            log.warning("aerobench: torch.compile of the physics step failed (%s); running the eager step (same "
+                        "numbers, slower on CPU). AEROBENCH_COMPILE=0 skips the attempt.", reason)
+
+
+_STEPS: dict[tuple, FusedPhysicsStep] = {}
+
+
+def fused_physics_step(platform: PlatformSpec, device: torch.device | str, compile: bool | None = None) -> FusedPhysicsStep:
+    """The process's one fused step for `platform` on `device` (shared, so it compiles once per process)."""
+    compile = compile_requested() if compile is None else compile
+    key = (platform, str(device), compile)
+    if key not in _STEPS:
+        _STEPS[key] = FusedPhysicsStep(platform, device, compile)
+    return _STEPS[key]

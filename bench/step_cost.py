@@ -1,0 +1,148 @@
+"""Milliseconds per control step of each aerobench env against the bare PhysX step of the same scene.
+
+Rows (one env, physx_cpu unless a GPU is named): (a) the bare scene, 12 PhysX steps with the hover joint efforts
+held constant (no controller, no aerobench code); (b) ManiSkill's PickCube-v1, state, as a reference; (c)
+AeroFly-v1; (d) AeroPick-v1 and AeroPlace-v1, state, hovering and with the privileged expert acting; (e) the same
+Pick env with the three 128x128 RGB-D cameras (lavapipe's cost: reported, kept out of the ratios). Each aerobench
+row's ratio is to the bare step of its own scene. Then expert Pick episodes per minute on one core.
+
+    python bench/step_cost.py [--steps 100] [--episodes 3] [--no-cameras]
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import time
+
+os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
+logging.getLogger("mani_skill").setLevel(logging.ERROR)
+
+import gymnasium as gym  # noqa: E402
+import torch  # noqa: E402
+
+import aerobench.envs  # noqa: E402,F401
+from aerobench.envs.platforms import CONTROL_HZ, PHYSICS_HZ  # noqa: E402
+from aerobench.policies import make_policy  # noqa: E402
+
+SUBSTEPS = PHYSICS_HZ // CONTROL_HZ
+SEED = 0
+
+
+def per_step_ms(fn, steps: int, warmup: int = 5) -> float:
+    fn(warmup)
+    t0 = time.perf_counter()
+    fn(steps)
+    return (time.perf_counter() - t0) / steps * 1e3
+
+
+def bare_physics_ms(base, steps: int) -> float:
+    """12 PhysX steps of the env's own scene, the airframe's joint efforts frozen at their current (hover) values."""
+    agent, px = base.agent, base.scene.px
+    qf = agent.robot.get_qf().clone()
+
+    def bare(n):
+        for _ in range(n * SUBSTEPS):
+            agent.robot.set_qf(qf)
+            px.step()
+
+    return per_step_ms(bare, steps)
+
+
+def aero_rows(env_id: str, steps: int, expert: bool, **kwargs) -> tuple[float, float]:
+    """(ms per env.step, ms per bare step of the same scene); with `expert`, the expert's act() is in the step."""
+    env = gym.make(env_id, num_envs=1, **kwargs)
+    obs, _ = env.reset(seed=SEED, options={"reconfigure": True})
+    base = env.unwrapped
+    hover = torch.zeros(1, base.platform.action_dim)
+    hover[:, -1] = -1.0 if env_id == "AeroPlace-v1" else 1.0  # Place starts holding the object: keep it
+    policy = make_policy("expert", base) if expert else None
+    if policy is not None:
+        policy.reset(torch.arange(1))
+    state = {"obs": obs}
+
+    def ours(n):
+        for _ in range(n):
+            action = policy.act(state["obs"]) if policy is not None else hover
+            state["obs"], _, terminated, truncated, _ = env.step(action)
+            if bool(terminated.any() | truncated.any()):
+                state["obs"], _ = env.reset(seed=SEED)
+                if policy is not None:
+                    policy.reset(torch.arange(1))
+
+    t_ours = per_step_ms(ours, steps)
+    t_bare = bare_physics_ms(base, steps)
+    env.close()
+    return t_ours, t_bare
+
+
+def maniskill_reference_ms(steps: int) -> float:
+    env = gym.make("PickCube-v1", obs_mode="state", num_envs=1)
+    env.reset(seed=SEED)
+    action = torch.zeros(env.action_space.shape)
+
+    def ours(n):
+        for _ in range(n):
+            env.step(action)
+
+    t = per_step_ms(ours, steps)
+    env.close()
+    return t
+
+
+def expert_episodes_per_min(episodes: int) -> tuple[float, int, int]:
+    """Expert Pick episodes (TidyHouse, state) run to their end, one after another in this process."""
+    env = gym.make("AeroPick-v1", obs_mode="state_dict", num_envs=1)
+    base = env.unwrapped
+    successes = steps_total = 0
+    t0 = time.perf_counter()
+    for i in range(episodes):
+        obs, _ = env.reset(seed=1000 + i, options={"reconfigure": True})
+        policy = make_policy("expert", base)  # after the reset, as the rollout runner does: it plans in this layout
+        policy.reset(torch.arange(1))
+        while True:
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            steps_total += 1
+            if bool(terminated.any() | truncated.any()):
+                successes += int(info["success"][0])
+                break
+    minutes = (time.perf_counter() - t0) / 60
+    env.close()
+    return episodes / minutes, successes, steps_total
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=100, help="control steps timed per row")
+    parser.add_argument("--episodes", type=int, default=5, help="expert Pick episodes for the episodes-per-minute row")
+    parser.add_argument("--no-cameras", action="store_true", help="skip the rendered row (e)")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    print(f"physx_cpu, one env, one torch thread, {SUBSTEPS} physics steps per control step, {args.steps} control "
+          f"steps per row")
+    print(f"{'row':<44} {'ms/step':>9} {'bare ms':>9} {'ratio':>7}")
+    reference = maniskill_reference_ms(args.steps)
+    print(f"{'(b) ManiSkill PickCube-v1, state':<44} {reference:9.2f} {'':>9} {'':>7}")
+    rows = [
+        ("(c) AeroFly-v1, state, hovering", "AeroFly-v1", False, {"obs_mode": "state_dict"}),
+        ("(d) AeroPick-v1, state, hovering", "AeroPick-v1", False, {"obs_mode": "state_dict"}),
+        ("(d) AeroPick-v1, state, expert acting", "AeroPick-v1", True, {"obs_mode": "state_dict"}),
+        ("(d) AeroPlace-v1, state, hovering", "AeroPlace-v1", False, {"obs_mode": "state_dict"}),
+        ("(d) AeroPlace-v1, state, expert acting", "AeroPlace-v1", True, {"obs_mode": "state_dict"}),
+    ]
+    if not args.no_cameras:
+        rows.append(("(e) AeroPick-v1, 3 RGB-D cameras, expert", "AeroPick-v1", True, {"obs_mode": "rgbd"}))
+    for label, env_id, expert, kwargs in rows:
+        steps = args.steps if kwargs["obs_mode"] != "rgbd" else max(args.steps // 5, 5)
+        ours, bare = aero_rows(env_id, steps, expert, **kwargs)
+        print(f"{label:<44} {ours:9.2f} {bare:9.2f} {ours / bare:6.1f}x", flush=True)
+    print("(a) is each row's 'bare ms': the same scene's 12 PhysX steps alone. Goals: Pick with the expert <= 3x, "
+          "Fly <= 1.5x")
+    rate, successes, steps = expert_episodes_per_min(args.episodes)
+    print(f"expert Pick episodes per minute on one core: {rate:.1f} ({successes}/{args.episodes} successful, "
+          f"{steps} control steps)")
+
+
+if __name__ == "__main__":
+    main()

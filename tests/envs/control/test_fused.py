@@ -1,0 +1,136 @@
+"""The fused physics step: the same numbers as the laws it chains, compiled or not, and no host synchronization."""
+
+import gymnasium as gym
+import pytest
+import torch
+from torch.utils._python_dispatch import TorchDispatchMode
+
+import aerobench.envs  # noqa: F401
+from aerobench.envs.control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
+from aerobench.envs.control.flight import FlightMemory, FlightParams, flight_step
+from aerobench.envs.control.fused import FusedPhysicsStep, physics_step
+from aerobench.envs.control.virtual_joints import airframe_state_from_joints, joint_efforts_from_wrench
+from aerobench.envs.platforms import get_platform
+
+
+def _inputs(platform: str, n: int = 3, seed: int = 0):
+    g = torch.Generator().manual_seed(seed)
+    spec = get_platform(platform)
+    params = FlightParams.from_platform(spec)
+    memory = FlightMemory.initial(n, params)
+    memory.xi = torch.randn(n, 3, generator=g) * 0.1
+    memory.yaw_des = torch.randn(n, generator=g)
+    joints = 6 + (3 if spec.arm else 0)
+    q, qd = torch.randn(n, joints, generator=g) * 0.2, torch.randn(n, joints, generator=g) * 0.2
+    v_cmd, yaw_rate = torch.randn(n, 3, generator=g), torch.randn(n, generator=g)
+    sync = torch.tensor([True] + [False] * (n - 1))
+    arm = ArmParams.from_spec(spec.arm, spec.gripper) if spec.arm else None
+    arm_target = torch.randn(n, 3, generator=g) * 0.3 if arm else None
+    contact = torch.tensor([False, True] + [False] * (n - 2)) if arm else None
+    return spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_fused_step_is_the_laws_it_chains(platform):
+    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact = _inputs(platform)
+    result = physics_step(q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w,
+                          sync, params, arm, arm_target, contact)
+    # the unfused reference, as the body controller ran it before fusion
+    state = airframe_state_from_joints(q[:, :6], qd[:, :6])
+    memory.yaw_des = torch.where(sync, state.yaw, memory.yaw_des)
+    feedforward = None
+    if arm is not None:
+        feedforward = arm_weight_feedforward_body(state.rotation, q[:, 6:], arm, params.gravity)
+        feedforward = torch.where(contact[:, None], torch.zeros_like(feedforward), feedforward)
+    out, memory = flight_step(state, v_cmd, yaw_rate, memory, params, feedforward)
+    efforts = joint_efforts_from_wrench(q[:, :6], out.force_world, out.torque_world)
+    if arm is not None:
+        efforts = torch.cat([efforts, arm_servo_torques(q[:, 6:], qd[:, 6:], arm_target, arm, contact)], -1)
+    assert torch.equal(result.efforts, efforts)
+    assert torch.equal(result.xi, memory.xi) and torch.equal(result.yaw_des, memory.yaw_des)
+    assert torch.equal(result.output().rotor_thrusts, out.rotor_thrusts)
+    assert torch.equal(result.state(q, qd).rotation, state.rotation)
+    assert torch.equal(result.state(q, qd).position, state.position)
+    # the reset env took its own heading (then one step of the commanded yaw rate)
+    assert float(result.yaw_des[0]) == pytest.approx(float(state.yaw[0] + yaw_rate[0] * params.dt), abs=1e-6)
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_compiled_step_matches_the_eager_one(platform):
+    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact = _inputs(platform, seed=1)
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    tensors = [q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w, sync]
+    if arm is not None:
+        tensors += [arm_target, contact]
+    compiled, eager = step(*tensors), step.eager(*tensors)
+    assert step.backend == "compiled", step.backend  # this machine has a C++ compiler: no silent fallback
+    for name, a, b in zip(compiled._fields, compiled, eager):
+        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5, msg=name)
+
+
+def test_a_broken_compiler_falls_back_to_the_eager_step(monkeypatch):
+    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, *_ = _inputs("gripper")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no C++ compiler")
+
+    monkeypatch.setattr(torch, "compile", lambda fn, **kw: broken)
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    tensors = [q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w, sync]
+    result = step(*tensors)
+    assert step.backend.startswith("eager (fallback: RuntimeError: no C++ compiler")
+    assert torch.equal(result.efforts, step.eager(*tensors).efforts)
+
+
+class _NoHostSync(TorchDispatchMode):
+    """Fails on every op that turns a tensor into a Python value (`.item()`, `bool()`, `.any()` in an `if`, ...)."""
+
+    SYNCING = {torch.ops.aten._local_scalar_dense.default, torch.ops.aten.is_nonzero.default,
+               torch.ops.aten.equal.default, torch.ops.aten.allclose.default}
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        if func in self.SYNCING:
+            raise AssertionError(f"host synchronization in the per-physics-step path: {func}")
+        return func(*args, **(kwargs or {}))
+
+
+def test_the_detector_catches_a_sync():
+    with pytest.raises(AssertionError, match="host synchronization"), _NoHostSync():
+        if torch.ones(2).any():
+            pass
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_the_physics_step_path_makes_no_host_sync(platform):
+    """The body controller's `before_simulation_step` (joint read, fused step, effort write) on physx_cpu, right after
+    a reset (the heading sync) and in flight; on physx_cuda any such op would stall the whole batch."""
+    env = gym.make("AeroFly-v1", obs_mode="state_dict", platform=platform)
+    env.reset(seed=0)
+    controller = env.unwrapped.agent.body_controller
+    controller.step_fn = FusedPhysicsStep(env.unwrapped.platform, "cpu", compile=False)  # dispatch-visible ops
+    controller.set_action(torch.full((1, controller.single_action_space.shape[0]), 0.3))
+    with _NoHostSync():
+        for _ in range(3):
+            controller.before_simulation_step()
+    assert bool(torch.isfinite(controller.memory.xi).all())
+    env.close()
+
+
+def test_a_compiled_flight_follows_the_eager_one():
+    """The same 3 s of flight (climb, turn, translate) with the compiled and the eager step: same track to 1 mm."""
+    tracks = {}
+    for compile in (False, True):
+        env = gym.make("AeroFly-v1", obs_mode="state_dict")
+        env.reset(seed=0)
+        base = env.unwrapped
+        base.agent.body_controller.step_fn = FusedPhysicsStep(base.platform, "cpu", compile=compile)
+        positions = []
+        for t in range(60):
+            action = torch.tensor([[0.4 if t > 20 else 0.0, 0.0, 0.5 if t < 20 else 0.0, 0.3, 1.0]])
+            env.step(action)
+            positions.append(base.agent.airframe_state().position[0].clone())
+        tracks[compile] = torch.stack(positions)
+        assert base.agent.body_controller.step_fn.backend == ("compiled" if compile else "eager")
+        env.close()
+    assert float((tracks[True] - tracks[False]).norm(dim=-1).max()) < 1e-3
+    assert float((tracks[True][-1] - tracks[True][0]).norm()) > 0.2  # it really flew
