@@ -242,7 +242,7 @@ def _add_generate(sub) -> None:
     p.add_argument("--objects", type=_csv, default=None, help="comma-separated objects (default: all of the setting's)")
     p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only; CPU: use --shard)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--shard", type=_shard, default=(0, 1), help="i/k: this process runs episode indices i, i+k, ...")
+    p.add_argument("--shard", type=_shard, default=(0, 1), help="i/k: this process runs the i-th of k contiguous blocks of the episodes")
     p.add_argument("--keep", choices=("success", "all"), default="success", help="which episodes enter the dataset")
     p.add_argument("--policy", default="expert", help="expert (default) or random")
     p.add_argument("--platform", default=None, help="gripper or arm (default: the skill's)")
@@ -251,14 +251,26 @@ def _add_generate(sub) -> None:
     p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
     p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
     p.add_argument("--out", required=True, help="dataset folder (LeRobotDataset root)")
+    _add_ray_options(p, "shards")
     p.set_defaults(func=_run_generate)
 
 
+def _add_ray_options(p, shards_name: str | None = None) -> None:
+    p.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
+                   help="run the shards as Ray tasks: alone, a local Ray runtime on this machine's cores; with HOST:PORT "
+                        "(or auto), the cluster there (ray start --head); the output folder must be shared by the workers")
+    if shards_name:
+        p.add_argument(f"--{shards_name}", type=int, default=None,
+                       help="with --ray: how many shards (default: one per CPU of the Ray runtime)")
+
+
 def _run_generate(args) -> int:
-    from .export import DatasetSink
-    from .rollout.runner import RolloutRunner, RolloutSpec
+    from .export.generation import generate, generate_on_ray, open_sink
+    from .rollout.runner import RolloutSpec
 
     try:
+        if args.ray is not None and args.shard != (0, 1):
+            raise ValueError("--ray runs every shard itself; leave out --shard")
         spec = RolloutSpec(
             setting=args.setting, skills=args.skills, episodes=args.episodes, objects=args.objects,
             num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, platform=args.platform,
@@ -272,22 +284,59 @@ def _run_generate(args) -> int:
             from .envs.platforms import get_platform
 
             get_platform(args.platform)
-        sink_spec = {**spec.as_dict(), "keep": args.keep}
-        keep = (lambda r: r.outcome == "S") if args.keep == "success" else None
-        sink = DatasetSink(Path(args.out), sink_spec, keep=keep, part_size=args.part_size)
+        if args.shards is not None and args.shards < 1:
+            raise ValueError(f"--shards must be a positive integer, got {args.shards}")
+        if args.ray is None:
+            open_sink(spec, args.out, args.keep, args.part_size)  # a folder of another generation fails before work
+        else:
+            from .rollout.ray_shards import connect
+
+            connect(args.ray)  # no cluster at the address: one line before any work
     except ValueError as e:
         raise UserError(str(e)) from None
     bar = _progress_bar(spec)
-    runner = RolloutRunner(spec, sink, on_episode=lambda ep, progress: bar(progress))
     try:
-        progress = runner.run()
+        if args.ray is not None:
+            return _generate_on_ray(args, spec, generate_on_ray)
+        progress = generate(spec, args.out, args.keep, args.part_size, on_episode=lambda ep, progress: bar(progress))
     except ValueError as e:
         raise UserError(str(e)) from None
-    sink.close()
     bar(progress, final=True)
     print(f"{progress.done} of {progress.total} episodes in {args.out} (this shard); success {progress.successes} "
           f"of {progress.run_done} run now")
     return 0
+
+
+def _generate_on_ray(args, spec, generate_on_ray) -> int:
+    update, close = _ray_progress_bar(spec)
+    root = generate_on_ray(spec, args.out, args.keep, args.part_size, address=args.ray, shards=args.shards,
+                           on_progress=update)
+    close()
+    print(f"{spec.episodes} episodes in {args.out}, merged" + ("" if root else " (no episode kept)"))
+    return 0
+
+
+def _ray_progress_bar(spec):
+    """One bar over every Ray shard: episodes done, success so far, episodes per minute."""
+    from tqdm import tqdm
+
+    state = {}
+
+    def update(done: int, successes: int, seconds: float) -> None:
+        if "bar" not in state:
+            state["bar"] = tqdm(total=spec.episodes, unit="ep", desc=f"{spec.setting} {','.join(spec.skills)} (ray)",
+                                dynamic_ncols=True)
+        bar = state["bar"]
+        bar.n = done
+        rate = successes / done if done else 0.0
+        bar.set_postfix_str(f"success {successes}/{done} ({rate:.0%}), {60 * done / max(seconds, 1e-9):.1f} ep/min")
+        bar.refresh()
+
+    def close() -> None:
+        if "bar" in state:
+            state["bar"].close()
+
+    return update, close
 
 
 def _progress_bar(spec):
@@ -393,6 +442,7 @@ def _add_eval(sub) -> None:
     p.add_argument("--workers", type=int, default=1, help="physx_cpu: run the episodes in this many worker processes "
                    "(shards; e.g. the number of cores)")
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
+    _add_ray_options(p)
     p.set_defaults(func=_run_eval)
 
 
@@ -405,19 +455,27 @@ def _run_eval(args) -> int:
             episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
             seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
             dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
+            ray=args.ray,
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
         config.needs_images()  # unknown names and bad checkpoints fail before any work
         spec = config.rollout_spec(record_cameras=False)
+        if args.ray is not None:
+            from .rollout.ray_shards import connect
+
+            connect(args.ray)
     except ValueError as e:
         raise UserError(str(e)) from None
     bar = _progress_bar(spec)
+    ray_update, ray_close = _ray_progress_bar(spec) if args.ray is not None else (None, lambda: None)
     try:
         results = evaluate(config, args.out, on_episode=lambda ep, progress: bar(progress),
-                           command="aerobench " + shlex.join(sys.argv[1:]))
+                           command="aerobench " + shlex.join(sys.argv[1:]), on_progress=ray_update)
     except ValueError as e:
         raise UserError(str(e)) from None
+    finally:
+        ray_close()
     print(format_table(results))
     print(f"wrote {Path(args.out) / 'results.json'}")
     return 0

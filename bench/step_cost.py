@@ -4,9 +4,11 @@ Rows (one env, physx_cpu unless a GPU is named): (a) the bare scene, 12 PhysX st
 held constant (no controller, no aerobench code); (b) ManiSkill's PickCube-v1, state, as a reference; (c)
 AeroFly-v1; (d) AeroPick-v1 and AeroPlace-v1, state, hovering and with the privileged expert acting; (e) the same
 Pick env with the three 128x128 RGB-D cameras (lavapipe's cost: reported, kept out of the ratios). Each aerobench
-row's ratio is to the bare step of its own scene. Then expert Pick episodes per minute on one core.
+row's ratio is to the bare step of its own scene. Then expert Pick episodes per minute on one core, and `aerobench
+train ppo` env steps per second (Pick, from scratch, the spec's 64-step windows) with K = 1 env and with K = 2
+worker processes (physx_cpu runs one env per process).
 
-    python bench/step_cost.py [--steps 100] [--episodes 3] [--no-cameras]
+    python bench/step_cost.py [--steps 100] [--episodes 5] [--ppo-windows 3] [--ppo-envs 2] [--no-cameras]
 """
 
 from __future__ import annotations
@@ -112,10 +114,28 @@ def expert_episodes_per_min(episodes: int) -> tuple[float, int, int]:
     return episodes / minutes, successes, steps_total
 
 
+def ppo_steps_per_second(num_envs: int, windows: int) -> float:
+    """Env steps per second of `train_ppo` over its windows after the first (which pays the process start-up)."""
+    import tempfile
+
+    from aerobench.train.common import read_scalars
+    from aerobench.train.ppo import PPOConfig, train_ppo
+
+    with tempfile.TemporaryDirectory() as out:
+        config = PPOConfig(setting="TidyHouse", skill="pick", objects=("master_chef_can",), out=out, num_envs=num_envs,
+                           total_steps=64 * num_envs * windows, hidden=(64, 64), save_every=windows, progress=False)
+        train_ppo(config)
+        sps = [v for _, v in read_scalars(out, "charts/SPS")][1:]
+    return sum(sps) / len(sps)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=100, help="control steps timed per row")
     parser.add_argument("--episodes", type=int, default=5, help="expert Pick episodes for the episodes-per-minute row")
+    parser.add_argument("--ppo-windows", type=int, default=3, help="PPO windows per K (0: skip the PPO rows)")
+    parser.add_argument("--ppo-envs", type=lambda t: [int(v) for v in t.split(",")], default=[2],
+                        help="K values (> 1) of the worker-process PPO rows, comma-separated")
     parser.add_argument("--no-cameras", action="store_true", help="skip the rendered row (e)")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -142,6 +162,13 @@ def main() -> None:
     rate, successes, steps = expert_episodes_per_min(args.episodes)
     print(f"expert Pick episodes per minute on one core: {rate:.1f} ({successes}/{args.episodes} successful, "
           f"{steps} control steps)")
+    if args.ppo_windows >= 2:
+        one = ppo_steps_per_second(1, args.ppo_windows)
+        print(f"train ppo env steps per second: K=1 {one:.1f}")
+        for k in args.ppo_envs:
+            sps = ppo_steps_per_second(k, args.ppo_windows)
+            print(f"train ppo env steps per second: K={k} worker processes {sps:.1f} ({sps / one:.2f}x of K=1"
+                  + ("; goal >= 1.8x on 2 cores)" if k == 2 else ")"), flush=True)
 
 
 if __name__ == "__main__":

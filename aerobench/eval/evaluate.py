@@ -6,6 +6,8 @@ A learned policy's results also record how many of those starts its training dat
 Records are appended as episodes finish; running the same command again continues an interrupted evaluation.
 With `workers` > 1 (physx_cpu runs one env per process) the plan is split into that many shards, each run in its own
 worker process into its own crash-safe record file (`shards/<i>-of-<k>/records.jsonl`); the results summarize all.
+With `ray` the shards are Ray tasks instead (`rollout.ray_shards`: a local runtime or a cluster; `workers` shards,
+default one per CPU Ray offers), written to the same files, so `out` must be a folder every worker sees.
 """
 
 from __future__ import annotations
@@ -44,7 +46,8 @@ class EvalConfig:
     dataset_revision: str | None = None
     max_steps: int | None = None  # truncate every episode after this many control steps (smoke tests)
     chain: tuple[str, ...] | None = None  # e.g. ("pick", "transport", "place"): the spec's chained protocol
-    workers: int = 1  # shards run in this many worker processes
+    workers: int = 1  # shards run in this many worker processes (with `ray`: this many Ray tasks; 1 = one per CPU)
+    ray: str | None = None  # run the shards on Ray: "local" (this machine's cores), "auto" or a head's HOST:PORT
 
     def __post_init__(self):
         if not (isinstance(self.workers, int) and self.workers >= 1):
@@ -82,13 +85,17 @@ def evaluate(
     out: str | Path,
     on_episode: Callable[[EpisodeData, Progress], None] | None = None,
     command: str | None = None,
+    on_progress: Callable[[int, int, float], None] | None = None,
 ) -> dict:
     """Run (or continue) the evaluation into `out/records.jsonl` (with workers: one file per shard) and write
-    `out/results.json`; returns the results."""
+    `out/results.json`; returns the results. With `config.ray`, `on_progress(done, successes, seconds)` hears of
+    the episodes of every shard as they finish."""
     out = Path(out)
     spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0)
     held_out = held_out_check(config, spec)
-    if config.workers == 1:
+    if config.ray is not None:
+        record_files = _run_on_ray(config, out, on_progress)
+    elif config.workers == 1:
         record_files = [run_shard(config, out, (0, 1), on_episode)]
     else:
         record_files = _run_in_workers(config, out, on_episode)
@@ -149,6 +156,26 @@ def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
         for future in as_completed(futures):
             future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here
     return [folder / "records.jsonl" for folder in folders]
+
+
+def _shard_task(config: EvalConfig, folder: str, shard: tuple[int, int], progress_actor) -> str:
+    """One Ray task: one shard's episodes into `folder/records.jsonl`."""
+    from ..rollout.ray_shards import episode_reporter
+    from ..train.common import torch_threads
+
+    with torch_threads(1):
+        return str(run_shard(config, Path(folder), shard, on_episode=episode_reporter(progress_actor)))
+
+
+def _run_on_ray(config: EvalConfig, out: Path, on_progress) -> list[Path]:
+    from ..rollout.ray_shards import connect, run_shards
+
+    cpus = connect(config.ray)
+    k = config.workers if config.workers > 1 else cpus
+    out.mkdir(parents=True, exist_ok=True)
+    folders = [out / "shards" / f"{i}-of-{k}" for i in range(k)]
+    files = run_shards(_shard_task, [(config, str(f), (i, k)) for i, f in enumerate(folders)], on_progress=on_progress)
+    return [Path(f) for f in files]
 
 
 def held_out_check(config: EvalConfig, spec: RolloutSpec) -> dict | None:

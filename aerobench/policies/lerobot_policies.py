@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from ..export.depth import encode_depth_mm
-from .provenance import TrainingStarts, dataset_starts, recorded_path
+from .provenance import STARTS_FILE, TrainingStarts, dataset_starts, read_starts, recorded_path
 from .registry import register_policy
 
 REQUIRED_FILES = ("config.json", "model.safetensors")
@@ -83,7 +83,7 @@ def _make_processors(config, path: Path, device: str):
 
 
 @functools.lru_cache(maxsize=2)
-def _load_policy(path: Path, kind: str):
+def load_policy(path: Path, kind: str):
     """Config, model and processors of a checkpoint, loaded once per process (the runner builds a policy per batch)."""
     from lerobot.policies.factory import get_policy_class
 
@@ -105,7 +105,7 @@ class LeRobotPolicy:
         self.name = self.kind
         path = resolve_checkpoint(checkpoint, self.kind)
         self.env = env
-        config, self.model, self.preprocess, self.postprocess = _load_policy(path, self.kind)
+        config, self.model, self.preprocess, self.postprocess = load_policy(path, self.kind)
         self.device = torch.device(config.device)
         self.inputs = dict(config.input_features)
         action_dim = config.output_features["action"].shape[0]
@@ -120,15 +120,20 @@ class LeRobotPolicy:
 
     @classmethod
     def training_starts(cls, checkpoint: str) -> TrainingStarts:
-        """The starts of the dataset the checkpoint's `train_config.json` names (lerobot-train writes
-        OUTPUT/checkpoints/<step>/pretrained_model; a relative dataset root is relative to where it ran)."""
+        """The starts the checkpoint carries (`starts.json`, written when a checkpoint is copied away from its data,
+        e.g. committed under `leaderboards/checkpoints/`), else those of the dataset its `train_config.json` names
+        (lerobot-train writes OUTPUT/checkpoints/<step>/pretrained_model; a relative dataset root is relative to
+        where it ran), recorded under the root as it was given."""
         folder = resolve_checkpoint(checkpoint, cls.kind)
+        if (folder / STARTS_FILE).is_file():
+            return read_starts(folder)
         train_config = folder / "train_config.json"
         if not train_config.is_file():
             return TrainingStarts(untraced=[str(folder)])
         recorded = json.loads(train_config.read_text())
-        dataset = recorded_path(recorded.get("dataset", {}).get("root"), folder.parents[2], recorded.get("output_dir"))
-        return dataset_starts(dataset) if dataset else TrainingStarts(untraced=[str(folder)])
+        root = recorded.get("dataset", {}).get("root")
+        dataset = recorded_path(root, folder.parents[2], recorded.get("output_dir"))
+        return dataset_starts(dataset, source=root) if dataset else TrainingStarts(untraced=[str(folder)])
 
     def reset(self, env_idx: torch.Tensor) -> None:
         self.model.reset()  # clears the action-chunk queue (the runner starts a batch's episodes together)

@@ -2,8 +2,8 @@
 
 Data generation (`aerobench generate`) and evaluation (`aerobench eval`) both run it; they differ only in the policy
 and the sink. Episodes are planned up front (`plan_episodes`): episode i has a fixed seed, skill and object, so
-the same command gives the same episodes, `--shard i/k` takes every k-th index, and a rerun skips what its sink
-already holds. physx_cpu runs one env per process (use shards for parallelism); with physx_cuda, `num_envs`
+the same command gives the same episodes, `--shard i/k` takes the i-th of k contiguous blocks of the plan (so the
+merged shards are in plan order), and a rerun skips what its sink already holds. physx_cpu runs one env per process (use shards for parallelism); with physx_cuda, `num_envs`
 episodes of the same skill run as one batch.
 """
 
@@ -127,8 +127,10 @@ def _uses_object(spec: RolloutSpec) -> bool:
 
 
 def shard_plans(spec: RolloutSpec) -> list[EpisodePlan]:
+    """Shard i of k: the i-th of k contiguous blocks of the plan (balanced too: the plan cycles skills and objects)."""
     i, k = spec.shard
-    return [p for p in plan_episodes(spec) if p.index % k == i]
+    plans = plan_episodes(spec)
+    return plans[i * len(plans) // k : (i + 1) * len(plans) // k]
 
 
 @dataclass

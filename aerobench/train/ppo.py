@@ -58,6 +58,7 @@ from .common import (
     torch_threads,
     truncate_jsonl,
 )
+from .vector import ProcessBatchedEnv
 
 EPISODES_FILE = "train_episodes.jsonl"
 RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + episodes started
@@ -76,7 +77,8 @@ class PPOConfig:
                                                                             "(default: the setting's, sampled)"})
     total_steps: int = field(default=1_000_000, metadata={"help": "env steps in total (a resumed run continues to this)"})
     seed: int = field(default=0, metadata={"help": "seed of the networks, the action noise and the episodes"})
-    num_envs: int = field(default=1, metadata={"help": "parallel envs (physx_cuda; physx_cpu runs 1)"})
+    num_envs: int = field(default=1, metadata={"help": "parallel envs (physx_cuda: one batched scene; physx_cpu: one "
+                                                      "worker process each)"})
     sim_backend: str = field(default="physx_cpu", metadata={"help": "physx_cpu or physx_cuda"})
     init_bc: str | None = field(default=None, metadata={"help": "BC checkpoint to initialise the actor (and its "
                                                                  "normalization) from"})
@@ -129,8 +131,6 @@ class PPOConfig:
             setting.check_object(obj)
         if self.sim_backend not in SIM_BACKENDS:
             raise ValueError(f"unknown --sim-backend {self.sim_backend!r}; valid: {', '.join(SIM_BACKENDS)}")
-        if self.sim_backend == "physx_cpu" and self.num_envs != 1:
-            raise ValueError("physx_cpu runs one env per process: use --num-envs 1, or --sim-backend physx_cuda")
         for name in ("total_steps", "num_envs", "num_steps", "update_epochs", "num_minibatches", "save_every", "threads"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) > 0):
                 raise ValueError(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(self, name)}")
@@ -241,10 +241,24 @@ class SkillEnv:
             kwargs["max_episode_steps"] = config.max_episode_steps
         if config.objects and len(config.objects) == 1:
             kwargs["object"] = config.objects[0]
-        self.env = gym.make(SKILL_ENV_IDS[config.skill], **kwargs)
-        self.base = self.env.unwrapped
-        self.n, self.device = self.base.num_envs, self.base.device
+        env_id = SKILL_ENV_IDS[config.skill]
+        if config.sim_backend == "physx_cpu" and config.num_envs > 1:  # one env per process: K worker processes
+            if obs_mode != "state_dict":
+                raise ValueError("--num-envs > 1 on physx_cpu trains state-only actors; use --num-envs 1 for a "
+                                 "camera BC init, or --sim-backend physx_cuda")
+            kwargs.pop("num_envs")
+            self.env = ProcessBatchedEnv(env_id, config.num_envs, **kwargs)
+            self.platform, self.task_state, self.device = self.env.platform, self.env.task_state, self.env.device
+        else:
+            self.env = gym.make(env_id, **kwargs)
+            base = self.env.unwrapped
+            self.platform, self.task_state, self.device = base.platform, base.task_state, base.device
+        self.n = config.num_envs
         self.started = episodes_started
+
+    @property
+    def processes(self) -> bool:
+        return isinstance(self.env, ProcessBatchedEnv)
 
     def _objects(self) -> list[str] | None:
         objects = self.config.objects
@@ -274,7 +288,16 @@ class SkillEnv:
         if self.n == 1:
             return self.reset_all()
         for _ in range(MAX_RESET_TRIES):
-            new_obs, new_info = self.env.reset(options={"env_idx": idx.to(self.device)})
+            options = {"env_idx": idx.to(self.device)}
+            seeds = None
+            if self.processes:  # explicit seeds: every episode's start stays traceable (seed * stride + k)
+                base = self.config.seed * RESET_SEED_STRIDE + self.started
+                seeds = [None] * self.n
+                for j, i in enumerate(idx.tolist()):
+                    seeds[i] = base + j
+                if self._objects():
+                    options["objects"] = self._objects()
+            new_obs, new_info = self.env.reset(seed=seeds, options=options)
             self.started += len(idx)
             obs, info = new_obs, new_info
             idx = idx[info["init_failed"][idx].cpu()]
@@ -321,12 +344,12 @@ def _train_ppo(config: PPOConfig) -> Path:
         model, stats = bc_config["model"], bc_norm.as_dict()
     obs_mode = "rgbd" if config.init_bc and model["cameras"] else "state_dict"
     env = SkillEnv(config, obs_mode, train_state["episodes_started"] if train_state else 0)
-    action_dim = env.base.platform.action_dim
+    action_dim = env.platform.action_dim
     obs, info = env.reset_all()
-    with_arm = env.base.platform.arm is not None
+    with_arm = env.platform.arm is not None
     inputs = InputSpec.from_dict(model["inputs"]) if bc_actor is not None else config.input_spec(with_arm)
     history = FrameHistory(inputs.history)
-    task_state = env.base.task_state().cpu() if inputs.reads_task_state else None
+    task_state = env.task_state().cpu() if inputs.reads_task_state else None
     state_dim = inputs.frame(obs["agent"]["state"].cpu(), task_state).shape[-1] * inputs.history
     if bc_actor is None:
         model = model_spec(state_dim, action_dim, config.hidden, inputs, gripper=config.gripper)
@@ -356,12 +379,12 @@ def _train_ppo(config: PPOConfig) -> Path:
         torch.set_rng_state(train_state["torch_rng"])
 
     cameras, image_size = tuple(model["cameras"]), model["image_size"]
-    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.base.platform.name,
+    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.platform.name,
             "init_bc": str(Path(config.init_bc).resolve()) if config.init_bc else None}
 
     def inputs_of(obs, keep: bool = True) -> dict[str, torch.Tensor]:
         """The actor's raw inputs; `keep`: this is the step's observation (it enters the history)."""
-        task_state = env.base.task_state() if inputs.reads_task_state else None
+        task_state = env.task_state() if inputs.reads_task_state else None
         frame = inputs.frame(obs["agent"]["state"].cpu(), None if task_state is None else task_state.cpu())
         state = history.push(frame) if keep else history.peek(frame)
         return {"state": state, **{k: v.cpu() for k, v in camera_inputs(obs, cameras, image_size).items()}}

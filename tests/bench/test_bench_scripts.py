@@ -4,6 +4,7 @@ helpers."""
 
 import json
 import math
+import subprocess
 import sys
 from pathlib import Path
 
@@ -153,7 +154,8 @@ def test_bc_inputs_bench_trains_and_scores_each_variant_once(tmp_path):
 
 
 def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, capsys):
-    monkeypatch.setattr(sys, "argv", ["step_cost.py", "--steps", "3", "--episodes", "1", "--no-cameras"])
+    monkeypatch.setattr(sys, "argv", ["step_cost.py", "--steps", "3", "--episodes", "1", "--no-cameras",
+                                      "--ppo-windows", "0"])
     step_cost.main()
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.startswith("(")]
@@ -162,3 +164,15 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
         ours, bare, ratio = float(row.split()[-3]), float(row.split()[-2]), float(row.split()[-1].rstrip("x"))
         assert ours > 0 and bare > 0 and ratio == pytest.approx(ours / bare, rel=0.05)
     assert "expert Pick episodes per minute on one core" in out and "(1/1 successful" in out
+
+
+def test_scale_prints_the_rate_of_one_and_two_ray_workers(tmp_path):
+    """`bench/scale.py` on a local Ray runtime: both rows measured, the ratio consistent with them."""
+    r = subprocess.run([sys.executable, str(BENCH / "scale.py"), "--episodes", "2"], capture_output=True, text=True,
+                       timeout=900, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = {int(line.split()[0]): [float(v) for v in line.split()[1:]] for line in r.stdout.splitlines()
+            if line.strip()[:1].isdigit()}
+    assert sorted(rows) == [1, 2] and all(row[0] > 0 for row in rows.values())  # end to end; steady needs more
+    ratio = float(r.stdout.split("workers: end-to-end ")[1].split("x")[0])
+    assert ratio == pytest.approx(rows[2][0] / rows[1][0], abs=0.01)

@@ -7,7 +7,8 @@ from pathlib import Path
 
 from aerobench.eval.evaluate import EvalConfig, evaluate
 from aerobench.policies.learned import load_actor
-from aerobench.policies.provenance import read_starts
+from aerobench.policies.lerobot_policies import load_policy as load_lerobot_policy
+from aerobench.policies.registry import policy_training_starts
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "leaderboards" / "results"
@@ -15,27 +16,33 @@ PICK = ROOT / "leaderboards" / "checkpoints" / "TidyHouse" / "bc" / "pick"
 RESCORE_SEED = 4_290  # not a collection round (1..8), the curves (4000), diversity (4100) or the leaderboards (4200)
 
 
-def _named_checkpoints() -> list[tuple[str, Path]]:
-    """(results file, checkpoint folder) for every results file whose checkpoint lies under leaderboards/."""
+def _named_checkpoints() -> list[tuple[str, str, Path]]:
+    """(results file, policy, checkpoint folder) for every results file whose checkpoint lies under leaderboards/."""
     found = []
     for path in sorted(RESULTS.glob("*.json")):
-        spec = json.loads(path.read_text())["provenance"].get("checkpoint") or ""
+        results = json.loads(path.read_text())
+        spec = results["provenance"].get("checkpoint") or ""
         for part in spec.split(","):
             folder = part.split("=", 1)[-1]
             if folder.startswith("leaderboards/checkpoints/"):
-                found.append((path.name, ROOT / folder))
+                found.append((path.name, results["policy"], ROOT / folder))
     return found
 
 
 def test_learned_rows_name_committed_checkpoints_that_load():
     named = _named_checkpoints()
     assert named, "no results file names a checkpoint under leaderboards/checkpoints/"
-    for results, folder in named:
+    assert {policy for _, policy, _ in named} >= {"bc", "act"}
+    for results, policy, folder in named:
         assert folder.is_dir(), f"{results} names {folder}, which is not committed"
-        config, _, _ = load_actor(folder)  # raises on a missing or mismatched weight file
-        assert config["algorithm"] in ("bc", "ppo")
-        starts = read_starts(folder)
+        if policy in ("bc", "ppo"):
+            config, _, _ = load_actor(folder)  # raises on a missing or mismatched weight file
+            assert config["algorithm"] == policy
+        else:  # a LeRobot checkpoint: its config, weights and processors load
+            load_lerobot_policy(folder, policy)
+        starts = policy_training_starts(policy, str(folder))  # carried with the folder, not looked up in outputs/
         assert starts.starts or starts.ranges, f"{folder} does not record its training starts"
+        assert not starts.untraced and all(not Path(s).is_absolute() for s in starts.sources), starts.sources
 
 
 def test_committed_bc_pick_checkpoint_succeeds_held_out(tmp_path):

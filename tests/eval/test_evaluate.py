@@ -50,8 +50,8 @@ def test_worker_processes_record_the_same_episodes_as_one_process(tiny_eval, tmp
     files = results["provenance"]["records"].split(",")
     assert files == ["shards/0-of-2/records.jsonl", "shards/1-of-2/records.jsonl"]
     shards = [read_records(tmp_path / "eval" / f) for f in files]
-    assert [r["episode_index"] for r in shards[0]] == [0, 2, 4, 6]
-    assert [r["episode_index"] for r in shards[1]] == [1, 3, 5, 7]
+    assert [r["episode_index"] for r in shards[0]] == [0, 1, 2, 3]  # contiguous blocks of the plan
+    assert [r["episode_index"] for r in shards[1]] == [4, 5, 6, 7]
 
     def outcome(r):
         return r["episode_index"], r["seed"], r["object"], r["skill"], r["outcome"], r["mode"], r["steps"]

@@ -82,7 +82,7 @@ def test_missing_local_weights_or_tokenizer_are_one_line_errors(tmp_path, capsys
 def test_tiny_init_saves_weights_that_load_back_and_a_hub_tokenizer_fails_offline_in_one_line(camera_dataset, tmp_path):
     from lerobot.policies.factory import get_policy_class
 
-    from aerobench.policies.lerobot_policies import _load_config, _load_policy
+    from aerobench.policies.lerobot_policies import _load_config, load_policy
 
     out = init_pi(PiInitConfig(policy="pi05", dataset=str(camera_dataset), out=str(tmp_path / "tiny"), variant="tiny"))
     config = _load_config(out, "pi05")
@@ -103,7 +103,7 @@ def test_tiny_init_saves_weights_that_load_back_and_a_hub_tokenizer_fails_offlin
             step["config"]["tokenizer_name"] = "google/paligemma-3b-pt-224"
     (moved / "policy_preprocessor.json").write_text(json.dumps(pre))
     with pytest.raises(ValueError, match="'google/paligemma-3b-pt-224', which is not a local folder") as e:
-        _load_policy(moved, "pi05")
+        load_policy(moved, "pi05")
     assert "\n" not in str(e.value)
 
 
@@ -133,7 +133,7 @@ def test_pretrained_route_links_local_weights_and_points_the_processors_at_the_l
                                                                                               tmp_path):
     """`--variant pretrained` with a local weights folder (a tiny one stands in for lerobot/pi05_base, which is
     several GB and not available offline) and a local tokenizer folder."""
-    from aerobench.policies.lerobot_policies import _load_policy
+    from aerobench.policies.lerobot_policies import load_policy
 
     weights = init_pi(PiInitConfig(policy="pi05", dataset=str(camera_dataset), out=str(tmp_path / "base"),
                                    variant="tiny", seed=3))
@@ -144,7 +144,7 @@ def test_pretrained_route_links_local_weights_and_points_the_processors_at_the_l
     pre = json.loads((out / "policy_preprocessor.json").read_text())
     (step,) = [s for s in pre["steps"] if s["registry_name"] == "tokenizer_processor"]
     assert step["config"]["tokenizer_name"] == str(tokenizer.resolve())
-    config, model, preprocess, _ = _load_policy(out, "pi05")
+    config, model, preprocess, _ = load_policy(out, "pi05")
     assert config.input_features["observation.state"].shape == (19,)
     saved = load_file(weights / "model.safetensors")
     assert all(torch.equal(model.state_dict()[k], v) for k, v in saved.items())

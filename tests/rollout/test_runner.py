@@ -35,7 +35,8 @@ def test_plans_are_deterministic_balanced_and_sharded():
     assert len(set(picks)) == 8  # all eight PrepareGroceries classes, in turn
     assert len({p.seed for p in plans}) == 32
     shards = [shard_plans(RolloutSpec(setting="PrepareGroceries", skills=("pick",), episodes=10, shard=(i, 3))) for i in range(3)]
-    assert sorted(p.index for s in shards for p in s) == list(range(10))
+    assert [p.index for s in shards for p in s] == list(range(10))  # contiguous blocks, in plan order
+    assert [len(s) for s in shards] == [3, 3, 4]
 
 
 @pytest.mark.parametrize(
