@@ -517,6 +517,30 @@ def _run_summarize(args) -> int:
     return 0
 
 
+def _add_compare(sub) -> None:
+    p = sub.add_parser("compare", help="two evals on the same starts, episode by episode: paired table, exact McNemar "
+                       "p-value, 95% interval for the difference, verdict")
+    p.add_argument("a", help="eval folder or results file of policy A")
+    p.add_argument("b", help="eval folder or results file of policy B (same setting, skills, objects and --seed)")
+    p.add_argument("--difference", type=float, default=0.10,
+                   help="success-rate difference the power statement is about (default: 0.10, ten points)")
+    p.add_argument("--json", default=None, help="also write the comparison to this JSON file")
+    p.set_defaults(func=_run_compare)
+
+
+def _run_compare(args) -> int:
+    from .eval.compare import compare, format_comparison
+
+    try:
+        result = compare(args.a, args.b, difference=args.difference)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(format_comparison(result))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
+    return 0
+
+
 def _generate_command(spec: dict, out: Path) -> str:
     """The `aerobench generate` command line that wrote a dataset, rebuilt from its generation.json."""
     parts = ["aerobench generate", f"--setting {spec['setting']}", f"--skills {','.join(spec['skills'])}",
@@ -618,6 +642,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_train(sub)
     _add_pi_init(sub)
     _add_summarize(sub)
+    _add_compare(sub)
     _add_leaderboard(sub)
     return parser
 

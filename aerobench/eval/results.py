@@ -36,6 +36,8 @@ def _cell(rows: list[Mapping]) -> dict:
         "outcomes": dict(Counter(r["outcome"] for r in executed)),
         "modes": dict(Counter(r["mode"] for r in executed)),
         "causes": dict(Counter(r["cause"] for r in executed if r["cause"])),
+        # per episode (plan index, seed, outcome), so two runs on the same starts can be compared pairwise
+        "episodes": [[int(r["episode_index"]), r.get("seed"), r["outcome"]] for r in rows],
     }
 
 

@@ -92,6 +92,63 @@ def paired_comparison(a: dict, b: dict) -> PairedComparison:
                             mcnemar_exact(only_a, only_b))
 
 
+def paired_difference_interval(both: int, only_a: int, only_b: int, neither: int, z: float = Z_95) -> tuple[float, float]:
+    """95% interval for rate(A) - rate(B) on paired episodes: Newcombe (1998, Stat. Med. 17:2635) method 10, the
+    Wilson score intervals of the two rates combined through the phi correlation of the 2x2 table (phi with the
+    continuity correction of Newcombe's method as given in Altman et al., "Statistics with Confidence", 2000)."""
+    for v in (both, only_a, only_b, neither):
+        if v < 0:
+            raise ValueError(f"paired counts must not be negative, got {both, only_a, only_b, neither}")
+    n = both + only_a + only_b + neither
+    if n == 0:
+        return (-1.0, 1.0)
+    p1, p2 = (both + only_a) / n, (both + only_b) / n
+    l1, u1 = wilson_interval(both + only_a, n, z)
+    l2, u2 = wilson_interval(both + only_b, n, z)
+    margins = (both + only_a) * (only_b + neither) * (both + only_b) * (only_a + neither)
+    phi = 0.0
+    if margins > 0:
+        cross = both * neither - only_a * only_b
+        corrected = cross - n / 2 if cross > n / 2 else (cross if cross < 0 else 0.0)
+        phi = corrected / math.sqrt(margins)
+    d = p1 - p2
+    lower = d - math.sqrt(max(0.0, (p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2) + (u2 - p2) ** 2))
+    upper = d + math.sqrt(max(0.0, (p2 - l2) ** 2 - 2 * phi * (p2 - l2) * (u1 - p1) + (u1 - p1) ** 2))
+    return max(-1.0, lower), min(1.0, upper)
+
+
+def mcnemar_power(n: int, discordant: float, difference: float, alpha: float = 0.05) -> float:
+    """Approximate power of the two-sided McNemar test with `n` paired episodes to detect a true difference in
+    success rate `difference`, when a fraction `discordant` of the pairs disagree (Connor, 1987, Biometrics 43:207)."""
+    if n <= 0 or discordant <= 0 or difference == 0:
+        return 0.0
+    discordant = max(discordant, abs(difference))
+    z_a = _normal_quantile(1 - alpha / 2)
+    spread = math.sqrt(max(discordant - difference**2, 1e-12))
+    z = (abs(difference) * math.sqrt(n) - z_a * math.sqrt(discordant)) / spread
+    return 0.5 * (1 + math.erf(z / math.sqrt(2)))
+
+
+def mcnemar_sample_size(discordant: float, difference: float, power: float = 0.8, alpha: float = 0.05) -> int:
+    """Paired episodes the McNemar test needs to detect `difference` with `power` (Connor, 1987)."""
+    discordant = max(discordant, abs(difference))
+    z_a, z_b = _normal_quantile(1 - alpha / 2), _normal_quantile(power)
+    n = (z_a * math.sqrt(discordant) + z_b * math.sqrt(max(discordant - difference**2, 0.0))) ** 2 / difference**2
+    return math.ceil(n)
+
+
+def _normal_quantile(q: float) -> float:
+    """Inverse of the standard normal CDF (bisection on erf: exact enough for interval and power work)."""
+    lo, hi = -10.0, 10.0
+    for _ in range(100):
+        mid = (lo + hi) / 2
+        if 0.5 * (1 + math.erf(mid / math.sqrt(2))) < q:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
+
+
 def _check_counts(successes: int, n: int) -> None:
     if n < 0 or not 0 <= successes <= n:
         raise ValueError(f"need 0 <= successes <= n, got {successes} of {n}")

@@ -137,6 +137,8 @@ def add_config_arguments(parser: argparse.ArgumentParser, cls, required: tuple[s
         options: dict = {"dest": field.name, "help": help_text.strip(), "default": default}
         if field.name in required:
             options.update(required=True, default=None)
+        if "const" in field.metadata:  # a flag that may stand alone (`--ray`) or take a value (`--ray HOST:PORT`)
+            options.update(nargs="?", const=field.metadata["const"])
         if kind is bool:
             options["action"] = argparse.BooleanOptionalAction
         elif typing.get_origin(kind) is tuple:

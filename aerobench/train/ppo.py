@@ -58,14 +58,14 @@ from .common import (
     torch_threads,
     truncate_jsonl,
 )
-from .vector import ProcessBatchedEnv
+from .vector import ProcessBatchedEnv, RayBatchedEnv, WorkerBatchedEnv
 
 EPISODES_FILE = "train_episodes.jsonl"
 RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + episodes started
 MAX_RESET_TRIES = 20  # a start the env cannot place (init_failed) is re-drawn this often before giving up
 SUCCESS_WINDOW = 100  # charts/success_rate: the last 100 finished episodes
 SIM_BACKENDS = ("physx_cpu", "physx_cuda")
-RESUMABLE_CHANGES = ("total_steps", "save_every", "progress", "threads")
+RESUMABLE_CHANGES = ("total_steps", "save_every", "progress", "threads", "ray")
 
 
 @dataclass
@@ -114,6 +114,9 @@ class PPOConfig:
     save_every: int = field(default=10, metadata={"help": "checkpoint every N windows (and at the end)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     threads: int = field(default=1, metadata={"help": "torch CPU threads (1 is fastest for these small networks)"})
+    ray: str | None = field(default=None, metadata={"const": "local", "help": "[ADDRESS] physx_cpu: the --num-envs envs as Ray "
+                            "actors (rollout workers) instead of local worker processes: --ray alone starts a local "
+                            "Ray runtime, --ray HOST:PORT (or auto) joins a cluster; the learner stays here"})
 
     def __post_init__(self):
         from ..envs.checker import SKILL_ENV_IDS
@@ -134,6 +137,9 @@ class PPOConfig:
         for name in ("total_steps", "num_envs", "num_steps", "update_epochs", "num_minibatches", "save_every", "threads"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) > 0):
                 raise ValueError(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(self, name)}")
+        if self.ray is not None and (self.sim_backend != "physx_cpu" or self.num_envs < 2):
+            raise ValueError("--ray runs the --num-envs physx_cpu envs as Ray actors: give --num-envs 2 or more "
+                             "(physx_cuda batches its envs in one process)")
         if (self.num_steps * self.num_envs) % self.num_minibatches:
             raise ValueError(f"--num-minibatches ({self.num_minibatches}) must divide num_steps x num_envs "
                              f"({self.num_steps * self.num_envs})")
@@ -247,7 +253,10 @@ class SkillEnv:
                 raise ValueError("--num-envs > 1 on physx_cpu trains state-only actors; use --num-envs 1 for a "
                                  "camera BC init, or --sim-backend physx_cuda")
             kwargs.pop("num_envs")
-            self.env = ProcessBatchedEnv(env_id, config.num_envs, **kwargs)
+            if config.ray is not None:
+                self.env = RayBatchedEnv(env_id, config.num_envs, config.ray, **kwargs)
+            else:
+                self.env = ProcessBatchedEnv(env_id, config.num_envs, **kwargs)
             self.platform, self.task_state, self.device = self.env.platform, self.env.task_state, self.env.device
         else:
             self.env = gym.make(env_id, **kwargs)
@@ -258,7 +267,7 @@ class SkillEnv:
 
     @property
     def processes(self) -> bool:
-        return isinstance(self.env, ProcessBatchedEnv)
+        return isinstance(self.env, WorkerBatchedEnv)
 
     def _objects(self) -> list[str] | None:
         objects = self.config.objects

@@ -199,14 +199,16 @@ def test_ppo_steps_envs_in_worker_processes_on_physx_cpu(tmp_path):
     assert all(math.isfinite(v) for _, v in read_scalars(run, "losses/policy_loss"))
 
 
-def test_worker_process_envs_match_the_in_process_env():
-    """The same seeds give the same starts and the same steps in the worker processes as in this one."""
+@pytest.mark.parametrize("workers", ["processes", "ray"])
+def test_worker_envs_match_the_in_process_env(workers):
+    """The same seeds give the same starts and the same steps in worker processes (or Ray actors) as in this one."""
     import gymnasium as gym
 
-    from aerobench.train.vector import ProcessBatchedEnv
+    from aerobench.train.vector import ProcessBatchedEnv, RayBatchedEnv
 
     kwargs = dict(setting="TidyHouse", obs_mode="state_dict", object="master_chef_can")
-    vec = ProcessBatchedEnv("AeroPick-v1", 2, **kwargs)
+    vec = ProcessBatchedEnv("AeroPick-v1", 2, **kwargs) if workers == "processes" else \
+        RayBatchedEnv("AeroPick-v1", 2, "local", **kwargs)
     try:
         obs, info = vec.reset(seed=[5, 6])
         action = torch.tensor([[0.2, -0.1, 0.3, 0.1, 1.0], [0.0, 0.2, -0.1, -0.2, -1.0]])
@@ -214,8 +216,14 @@ def test_worker_process_envs_match_the_in_process_env():
         task1 = vec.task_state()
         obs2, info2 = vec.reset(seed=[None, 9], options={"env_idx": torch.tensor([1])})
         assert torch.equal(obs2["agent"]["state"][0], obs1["agent"]["state"][0])  # env 0 untouched by the reset
+        assert not torch.equal(obs2["agent"]["state"][1], obs1["agent"]["state"][1])  # env 1 started again
+        assert info2["init_failed"].shape == (2,)
     finally:
         vec.close()
+        if workers == "ray":
+            import ray
+
+            ray.shutdown()
     for row, seed in enumerate((5, 6)):
         env = gym.make("AeroPick-v1", **kwargs)
         ref_obs, _ = env.reset(seed=seed, options={"reconfigure": True})
@@ -225,6 +233,22 @@ def test_worker_process_envs_match_the_in_process_env():
         torch.testing.assert_close(task1[row], env.unwrapped.task_state()[0])
         assert bool(info1["is_grasped"][row]) == bool(ref_info["is_grasped"][0])
         env.close()
+
+
+def test_ppo_rollout_workers_on_ray(tmp_path):
+    """--ray: the two envs are Ray actors of a local runtime, the learner runs here; same bookkeeping as processes."""
+    import ray
+
+    run = tmp_path / "ppo"
+    try:
+        train_ppo(_config(run, 128, num_envs=2, num_minibatches=4, ray="local"))
+    finally:
+        ray.shutdown()
+    state = _state(run)
+    assert state["global_step"] == 128 and state["iteration"] == 1
+    episodes = read_jsonl(run / "train_episodes.jsonl")
+    assert len(episodes) >= 4 and all(r["length"] <= 24 for r in episodes)
+    assert state["episodes_started"] >= 2 + len(episodes)
 
 
 def test_ppo_config_errors_are_one_line(tmp_path):
@@ -238,6 +262,8 @@ def test_ppo_config_errors_are_one_line(tmp_path):
         PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), controller="x")
     with pytest.raises(ValueError, match="--num-minibatches"):
         PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), num_minibatches=5)
+    with pytest.raises(ValueError, match="--ray runs the --num-envs physx_cpu envs as Ray actors: give --num-envs 2"):
+        PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), ray="local")
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "OMP_NUM_THREADS": "1"}
     proc = subprocess.run([str(BIN / "aerobench"), "train", "ppo", "--setting", "Nowhere", "--skill", "pick", "--out",
                            str(tmp_path / "x")], env=env, capture_output=True, text=True, timeout=120)
