@@ -492,6 +492,7 @@ def _add_summarize(sub) -> None:
 def _run_summarize(args) -> int:
     from .eval.evaluate import format_table
     from .eval.results import summarize, write_results
+    from .export.card import generate_command
     from .rollout.records import RECORDS_FILE, read_records
 
     path = Path(args.records)
@@ -506,7 +507,7 @@ def _run_summarize(args) -> int:
     command = "aerobench " + shlex.join(sys.argv[1:])
     if (path.parent / "generation.json").is_file() and path.parent.name == ".aerobench":
         # Records of a generated dataset: the table's provenance is the generate command, then this one.
-        command = f"{_generate_command(source, path.parent.parent)} && {command}"
+        command = f"{generate_command(source, path.parent.parent)} && {command}"
     try:
         results = summarize(read_records(path), {**source, "records": str(path), "command": command}, label=args.label)
     except (ValueError, KeyError) as e:
@@ -539,20 +540,6 @@ def _run_compare(args) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
     return 0
-
-
-def _generate_command(spec: dict, out: Path) -> str:
-    """The `aerobench generate` command line that wrote a dataset, rebuilt from its generation.json."""
-    parts = ["aerobench generate", f"--setting {spec['setting']}", f"--skills {','.join(spec['skills'])}",
-             f"--episodes {spec['episodes']}", f"--seed {spec['seed']}", f"--keep {spec['keep']}",
-             f"--policy {spec['policy']}", f"--controller {spec['controller']}"]
-    if spec.get("objects"):
-        parts.append(f"--objects {','.join(spec['objects'])}")
-    if spec.get("platform"):
-        parts.append(f"--platform {spec['platform']}")
-    if not spec.get("record_cameras", True):
-        parts.append("--no-cameras")
-    return " ".join([*parts, f"--out {out}"])
 
 
 def _add_leaderboard(sub) -> None:

@@ -19,6 +19,10 @@ from ..rollout.episode import CAMERAS, EVENT_FLAGS, EpisodeData
 from .depth import encode_depth_mm
 
 FPS = CONTROL_HZ  # one dataset frame per control step (20 Hz)
+# LeRobot decodes videos with torchcodec when it loads, else pyav; torchcodec needs FFmpeg's shared libraries
+# (libavutil 56-60), which a plain Linux machine may not have, and LeRobot then prints their loading traceback on
+# every dataset it opens before falling back. aerobench names the decoder that works everywhere instead.
+VIDEO_BACKEND = "pyav"
 ROBOT_TYPE_PREFIX = "aerobench_"
 OBS_DEPTH = "observation.depth"
 ANNOTATION_SKILL = "annotation.skill"

@@ -37,6 +37,7 @@ from .depth import DEPTH_ENCODING
 from .features import (
     ANNOTATION_SKILL,
     FPS,
+    VIDEO_BACKEND,
     episode_features,
     episode_frames,
     features_signature,
@@ -334,7 +335,8 @@ class DatasetSink:
         os.environ.setdefault("SVT_LOG", SVT_LOG_LEVEL)  # read by the encoder library when it opens
         robot = robot_type(episodes[0].record.platform)
         dataset = LeRobotDataset.create(
-            PART_REPO_ID, FPS, self._features, root=folder, robot_type=robot, use_videos=has_video
+            PART_REPO_ID, FPS, self._features, root=folder, robot_type=robot, use_videos=has_video,
+            video_backend=VIDEO_BACKEND,
         )
         parallel = (os.cpu_count() or 1) >= PARALLEL_ENCODING_MIN_CPUS
         for episode in episodes:
@@ -424,6 +426,8 @@ def merge_parts(root: str | Path) -> Path | None:
     """
     from lerobot.datasets.aggregate import aggregate_datasets  # heavy import, only when merging
 
+    from .card import write_dataset_card  # the card reads tools.dataset_info, which imports this module
+
     root = Path(root)
     spec = read_generation_spec(root)
     with _merge_lock(root):
@@ -435,6 +439,7 @@ def merge_parts(root: str | Path) -> Path | None:
         current = read_dataset_meta(root) if (root / "meta" / "info.json").exists() else None
         if current is not None and current["parts"] == names:
             rebuild_records(root)
+            write_dataset_card(root)
             return root  # already up to date
         cleaned = [p for p in parts if not part_has_dataset(p) and any(r["in_dataset"] for r in part_rows(p))]
         if cleaned:
@@ -471,4 +476,5 @@ def merge_parts(root: str | Path) -> Path | None:
         _write_atomic(work / MERGE_READY, json.dumps({"dirs": dirs}))
         _swap_in(root, work)
         rebuild_records(root)
+        write_dataset_card(root)
     return root

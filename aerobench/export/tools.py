@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from ..annotation.record import OUTCOME_CODES
-from .features import LEROBOT_DEFAULT_KEYS
+from .features import LEROBOT_DEFAULT_KEYS, VIDEO_BACKEND
 from .sink import (
     DATASET_META_FILE,
     EPISODES_FILE,
@@ -173,7 +173,7 @@ def filter_dataset(
     else:
         keep = {row["dataset_episode_index"] for row in selected}
         drop = [row["dataset_episode_index"] for row in rows if row["dataset_episode_index"] not in keep]
-        source = LeRobotDataset(FILTERED_REPO_ID, root=src)
+        source = LeRobotDataset(FILTERED_REPO_ID, root=src, video_backend=VIDEO_BACKEND)
         delete_episodes(source, drop, output_dir=dst, repo_id=f"local/{dst.name}")
     write_jsonl(dst / "meta" / EPISODES_FILE, [{**row, "dataset_episode_index": i} for i, row in enumerate(selected)])
     meta = read_dataset_meta(src) or {}

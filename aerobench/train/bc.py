@@ -24,6 +24,7 @@ import torch
 from torch.nn import functional as F
 
 from ..envs.observations import STATE_DIM, task_state_fields
+from ..export.features import VIDEO_BACKEND
 from ..policies.inputs import InputSpec
 from ..policies.learned import (
     CAMERAS,
@@ -133,7 +134,7 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
     episodes = select_episodes(root, config.outcomes)
     if not episodes:
         raise ValueError(f"{root} has no episode with outcome {'/'.join(config.outcomes)} to train on")
-    ds = LeRobotDataset(config.repo_id, root=root)
+    ds = LeRobotDataset(config.repo_id, root=root, video_backend=VIDEO_BACKEND)
     if config.images:
         missing = [c for c in CAMERAS if f"observation.images.{c}" not in ds.features]
         if missing:

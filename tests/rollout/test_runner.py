@@ -95,6 +95,13 @@ def test_shards_then_merge(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     info = subprocess.run(CLI + ["dataset", "info", str(out)], capture_output=True, text=True, timeout=300, env=ENV)
     assert "episodes  4" in info.stdout and "nav 4" in info.stdout
+    card = (out / "README.md").read_text()  # the dataset card, as LeRobot's hub datasets have
+    assert "aerobench generate --setting TidyHouse --skills nav --episodes 4 --seed 0 --keep all" in card
+    assert "| nav | 4 |" in card and "| `observation.state` | float32 | 19 |" in card and "state only" in card
+    snippet = card.split("```python\n")[1].split("```")[0]
+    scope: dict = {}
+    exec(snippet, scope)  # the card's loading code works as written
+    assert scope["ds"].num_episodes == 4
 
 
 def test_a_folder_with_another_dataset_is_refused_untouched(tmp_path):

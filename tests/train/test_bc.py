@@ -276,3 +276,22 @@ def test_a_policy_sees_at_evaluation_exactly_the_inputs_bc_trained_on(state_data
     (record,) = read_jsonl(tmp_path / "records.jsonl")
     assert record["outcome"] == "S" and len(seen) == len(demo_actions) == record["steps"]
     assert torch.equal(torch.stack(seen), demo_inputs.float())
+
+
+def test_a_camera_dataset_reads_without_torchcodec_traceback_and_in_lerobot_dataset_viz(tmp_path):
+    """aerobench names LeRobot's video decoder (pyav) instead of letting it probe torchcodec, whose FFmpeg libraries a
+    plain machine lacks: no loading traceback when `dataset info` and `train bc --images` read a camera dataset."""
+    data = _dataset(tmp_path / "cams", episodes=1, max_steps=6, cameras=True)
+    info = _run([str(BIN / "aerobench"), "dataset", "info", str(data)], cwd=tmp_path)
+    train = _run([str(BIN / "aerobench"), "train", "bc", "--dataset", str(data), "--out", str(tmp_path / "run"),
+                  "--images", "--steps", "2", "--batch-size", "4", "--image-size", "32", "--outcomes", "T",
+                  "--no-progress"], cwd=tmp_path)
+    assert "observation.images.drone_front" in info.stdout
+    for proc in (info, train):
+        text = proc.stdout + proc.stderr
+        assert "torchcodec" not in text and "Traceback" not in text and "libavutil" not in text
+    # LeRobot's own viewer on the same dataset, headless: a Rerun recording of episode 0
+    _run([str(BIN / "lerobot-dataset-viz"), "--repo-id", "local/cams", "--root", str(data), "--episode-index", "0",
+          "--save", "1", "--output-dir", str(tmp_path / "viz"), "--num-workers", "0"], cwd=tmp_path)
+    (rrd,) = (tmp_path / "viz").glob("*.rrd")
+    assert rrd.stat().st_size > 10_000
