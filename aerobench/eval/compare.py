@@ -39,7 +39,11 @@ def load_run(path: str | Path) -> Run:
     """An eval folder (`DIR/results.json` and its records) or a results file with per-episode outcomes."""
     path = Path(path)
     file = path / "results.json" if path.is_dir() else path
-    results = load_results(file)
+    return run_from_results(file, load_results(file))
+
+
+def run_from_results(file: Path, results: dict) -> Run:
+    """The run of a loaded results document (`file` locates the records of an older results file)."""
     episodes = {}
     for cell in results["cells"]:
         for index, seed, outcome in cell.get("episodes", ()):

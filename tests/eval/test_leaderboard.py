@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from aerobench.eval.leaderboard import build_leaderboard
+from aerobench.eval.leaderboard import MODE_COLOURS, MODE_FAMILIES, build_leaderboard
 from aerobench.eval.results import summarize, write_results
 
 from .spec_table import OBJECTS, SPEC_MEAN_SR, SPEC_TABLE, spec_records
@@ -73,15 +73,42 @@ def _chromium() -> str | None:
 def test_html_renders_in_headless_chromium(spec_results, tmp_path):
     import subprocess
 
-    build_leaderboard(spec_results, tmp_path)
+    build_leaderboard([*spec_results, *_paired_results(tmp_path)], tmp_path)
     page = (tmp_path / "index.html").resolve()
     r = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--dump-dom", page.as_uri()],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
     dom = r.stdout
-    assert 'data-tables-ready="1"' in dom  # the page's script ran over the one setting's table
-    assert dom.count('<td class="mean"') == 8 and "44.6</td>" in dom and '<td class="best"' in dom
-    assert dom.count('class="bar"') == 4  # one failure-mode bar per policy
+    assert 'data-tables-ready="2"' in dom  # the page's script ran over both settings' tables
+    assert dom.count('<td class="mean"') == 10 and "44.6</td>" in dom and '<td class="best"' in dom
+    assert dom.count('class="bar"') == 6  # one failure-mode bar per policy
+    # the legend: every family once, every mode of the spec's tables with its swatch
+    assert dom.count('class="legend" data-family=') == len(MODE_FAMILIES)
+    assert dom.count('class="swatch" data-mode=') == len(MODE_COLOURS)
+    # one colour per mode, whatever the row: Collision failure is drawn in all six bars in its fixed colour
+    drawn = re.findall(r'data-mode="Collision failure" style="width:[0-9.]+%;background:([^"]+)"', dom)
+    assert len(drawn) == 6 and set(drawn) == {MODE_COLOURS["Collision failure"]}
+    assert MODE_COLOURS["Successful placement"].startswith("hsl(122,")
+    # the comparison view shows the first comparable pair's paired table with a verdict
+    view = dom.split('<div class="compare" data-setting="TidyHouse">')[1].split('class="cmp-out">')[1].split("</div>")[0]
+    assert "<td>30</td><td>15</td>" in view and re.search(r'class="verdict">[AB] better<', view)
+    shot = tmp_path / "leaderboard.png"
+    r = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1400,2400",
+                        f"--screenshot={shot}", page.as_uri()], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _paired_results(tmp_path: Path) -> list[Path]:
+    """Two TidyHouse rows on the same 30 starts: both 15, only B 10, only A 2, neither 3."""
+    outcomes = {"weaker": ["S"] * 15 + ["F"] * 10 + ["S"] * 2 + ["F"] * 3,
+                "stronger": ["S"] * 15 + ["S"] * 10 + ["F"] * 2 + ["F"] * 3}
+    paths = []
+    for label, outs in outcomes.items():
+        rows = [{"episode_index": i, "seed": 7 * 1_000_003 + i, "setting": "TidyHouse", "policy": label, "skill": "pick",
+                 "object": "sugar_box", "outcome": o, "cause": "" if o == "S" else "collision", "segments": [],
+                 "mode": "Successful grasp handoff" if o == "S" else "Collision failure"} for i, o in enumerate(outs)]
+        paths.append(write_results(tmp_path / "paired" / f"{label}.json", summarize(rows, {"seed": 7}, label=label)))
+    return paths
 
 
 def test_repository_leaderboards_are_generated_from_their_results(tmp_path):
