@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..envs.tasks import SKILLS, get_setting
+from .pooling import pool_training_runs, training_runs_text
 from .results import load_results
 
 OBJECT_LABELS = {
@@ -64,19 +65,19 @@ class SettingTable:
 
 
 def load_all(paths: Sequence[str | Path]) -> dict[str, list[dict]]:
-    """Results grouped by setting; the same policy label twice in one setting is refused."""
-    by_setting: dict[str, list[dict]] = {}
+    """Results grouped by setting. Results sharing a label in one setting are training runs of one recipe (different
+    checkpoints) and become one pooled row (`pooling`); the same label with the same checkpoint twice is refused."""
+    by_label: dict[tuple[str, str], list[dict]] = {}
     for path in paths:
         result = load_results(path)
         result["_source"] = Path(path).name
         result["_path"] = Path(path).resolve()
-        group = by_setting.setdefault(result["setting"], [])
-        if any(r["label"] == result["label"] for r in group):
-            raise ValueError(f"two results for {result['label']!r} on {result['setting']} ({path}); pass one, or give "
-                             f"one a different --label when evaluating")
-        group.append(result)
-    if not by_setting:
+        by_label.setdefault((result["setting"], result["label"]), []).append(result)
+    if not by_label:
         raise ValueError("no results files given")
+    by_setting: dict[str, list[dict]] = {}
+    for (setting, _), runs in by_label.items():
+        by_setting.setdefault(setting, []).append(runs[0] if len(runs) == 1 else pool_training_runs(runs))
     return by_setting
 
 
@@ -99,12 +100,13 @@ def render_markdown(table: SettingTable) -> str:
                 mean = f"**{mean}**" if table.is_best_mean(result) else mean
             lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
     lines += _chain_markdown(table)
-    lines += ["", "| Row | n per cell | Starts seen in training | Results file | Command |", "|---|---|---|---|---|"]
+    lines += ["", "| Row | n per cell | Starts seen in training | Training runs (Mean S.R. each) | Results file | Command |",
+              "|---|---|---|---|---|---|"]
     for result in table.results:
         ns = sorted({c["n"] for c in result["cells"]})
         command = result["provenance"].get("command") or "-"
         lines.append(f"| {result['label']} | {', '.join(map(str, ns))} | {seen_in_training_text(result)} | "
-                     f"`{result['_source']}` | `{command}` |")
+                     f"{training_runs_text(result)} | `{result['_source']}` | `{command}` |")
     return "\n".join(lines) + "\n"
 
 
@@ -381,7 +383,8 @@ def render_html(tables: Sequence[SettingTable], video_root: Path | None = None) 
             legend = "".join(f'<span class="swatch" style="background:{mode_colour(m)}"></span>{e(m)} ({modes[m]})'
                              for m in names)
             videos = "".join(f' <a href="{e(v)}">video {j + 1}</a>' for j, v in enumerate(result.get("_videos", [])))
-            body.append(f'<p><b>{e(result["label"])}</b>{videos}</p><div class="bar">{spans}</div>'
+            runs = f' <span class="runs">{e(training_runs_text(result))}</span>' if result.get("training_runs") else ""
+            body.append(f'<p><b>{e(result["label"])}</b>{runs}{videos}</p><div class="bar">{spans}</div>'
                         f'<p class="legend">{legend}</p>')
     return _PAGE.format(body=_mode_legend() + "\n" + "\n".join(body))
 

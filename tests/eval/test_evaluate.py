@@ -114,4 +114,7 @@ def test_summarize_and_leaderboard_cli(tiny_eval, tmp_path):
     assert r.returncode == 0, r.stderr
     md = (tmp_path / "boards" / "TidyHouse.md").read_text()
     assert "| random (tiny) | Pick | 0.0 ± 0.0 | 0.0 ± 0.0 | 0.0 |" in md and "| random | Pick |" in md
-    assert Path(tmp_path / "boards" / "index.html").read_text().count("<tr>") == 1 + 4  # one setting: a header row and 2 policies x 2 skills
+    page = Path(tmp_path / "boards" / "index.html").read_text()
+    grid = page.split('<table class="sortable"')[1].split("</table>")[0]
+    assert grid.count("<tr>") == 1 + 4  # one setting: a header row and 2 policies x 2 skills
+    assert '<div class="compare" data-setting="TidyHouse">' in page  # both ran the same starts: comparable

@@ -70,6 +70,29 @@ def _chromium() -> str | None:
 
 
 @pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (make test installs Debian's chromium package)")
+def test_training_runs_sharing_a_label_pool_into_one_row(tmp_path):
+    """Three training seeds of one recipe (one --label, three checkpoints): one row over all their episodes, with
+    each run's Mean S.R., their mean and a bootstrap interval over runs."""
+    paths = []
+    for seed, successes in ((1, 8), (2, 9), (3, 4)):
+        rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "policy": "bc", "skill": "pick",
+                 "object": "sugar_box", "outcome": "S" if i < successes else "F", "cause": "", "segments": [],
+                 "mode": "Successful grasp handoff" if i < successes else "Collision failure"} for i in range(10)]
+        provenance = {"seed": 4200, "checkpoint": f"runs/bc_seed{seed}", "command": f"aerobench eval ... seed{seed}"}
+        paths.append(write_results(tmp_path / f"bc_seed{seed}.json", summarize(rows, provenance, label="bc")))
+    build_leaderboard(paths, tmp_path / "boards")
+    md = (tmp_path / "boards" / "TidyHouse.md").read_text()
+    row = next(line for line in md.splitlines() if line.startswith("| bc | Pick"))
+    assert "70.0 ± 8.4" in row  # 21 of 30 pooled episodes: sqrt(0.7 * 0.3 / 30) = 8.4
+    notes = next(line for line in md.splitlines() if line.startswith("| bc | 30 |"))
+    assert "3 runs: 80.0, 90.0, 40.0 (mean 70.0, bootstrap 95% over runs 40.0-90.0)" in notes
+    assert "bc_seed1.json + bc_seed2.json + bc_seed3.json" in notes
+    from aerobench.eval.pooling import bootstrap_mean_interval
+
+    lo, hi = bootstrap_mean_interval([0.8, 0.9, 0.4])
+    assert 0.4 <= lo < 0.7 < hi <= 0.9
+
+
 def test_html_renders_in_headless_chromium(spec_results, tmp_path):
     import subprocess
 
