@@ -32,6 +32,7 @@ from .events import (
     summarize,
     trace_length,
 )
+from .failure_analysis import failure_analysis
 
 
 class OutcomeCode(StrEnum):
@@ -273,6 +274,7 @@ def categorize(skill: str, signals: Signals, truncated: bool, init_failed: bool 
     checks = articulation_checks(episode) if skill in ARTICULATION_SKILLS else None
     mode = first_satisfied(MODE_TABLES[skill], Evidence(code, cause, events, checks))
     diagnostics: dict[str, float | int | bool | str | None] = summarize(skill, episode)
+    diagnostics.update(failure_analysis(skill, episode))
     if checks is not None:
         diagnostics.update({f"check_{k}": getattr(checks, k) for k in "JRAVNC"}, terminal_phase=checks.phase.label)
     return Outcome(skill, code, cause.label, mode.name, events, steps, diagnostics, checks)

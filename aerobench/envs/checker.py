@@ -22,7 +22,7 @@ COMMON_INFO_KEYS = (
 )
 SKILL_INFO_KEYS = {
     "pick": ("is_grasped", "is_grasp_held", "lift_height", "is_lifted", "object_height", "tcp_to_grasp_point",
-             "is_object_supported"),
+             "is_object_supported", "grasp_force_left", "grasp_force_right", "object_displacement", "object_rotation"),
     "place": ("is_grasped", "is_object_supported", "goal_distance", "is_aligned", "is_support_contact", "is_released", "release_registered",
               "is_gripper_clear", "platform_stable_steps", "collision_impulse", "is_set_down"),
     "nav": ("nav_distance", "is_nav_reached", "nav_settle_steps"),

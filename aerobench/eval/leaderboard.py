@@ -337,6 +337,49 @@ def _comparison_view(table: SettingTable, pairs: list[dict]) -> str:
             f"10; rows without per-episode outcomes or with other starts are not offered.</p></div>")
 
 
+def _fmt(value: float | None, digits: int = 3) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _failure_analysis_view(table: SettingTable) -> str:
+    """The spec's failure-analysis quantities per policy and object (cells' `failure_analysis`): pick failures by
+    mechanism, contact and release speeds, handoff rotation, transport grasp losses by mechanism and rotation."""
+    e = html.escape
+    rows = []
+    for result in table.results:
+        for c in result["cells"]:
+            fa = c.get("failure_analysis") or {}
+            if not fa:
+                continue
+            pick, place, transport = fa.get("pick", {}), fa.get("place", {}), fa.get("transport", {})
+            failures = pick.get("failures")
+            mechanisms = "-" if failures is None else (
+                f"{failures}: knocked {pick['failures_knocked_object']}, hit scene {pick['failures_hit_scene']}, "
+                f"other {failures - pick['failures_knocked_object'] - pick['failures_hit_scene']}")
+            losses = ", ".join(f"{k} {v}" for k, v in transport.get("grasp_losses", {}).items()) or (
+                "0" if transport else "-")
+            by_rotation = ", ".join(f"{k} deg: {lost}/{n}" for k, (lost, n) in
+                                    transport.get("losses_by_handoff_rotation_deg", {}).items()) or "-"
+            rows.append(f"<tr><td>{e(result['label'])}</td><td>{e(c['skill'])}</td><td>{e(c['object'] or '-')}</td>"
+                        f"<td>{c['n']}</td><td>{e(mechanisms)}</td>"
+                        f"<td>{_fmt(pick.get('median_speed_at_finger_contact_mps'), 4)}</td>"
+                        f"<td>{_fmt(pick.get('median_handoff_rotation_deg'), 1)}</td>"
+                        f"<td>{_fmt(place.get('median_speed_at_release_mps'), 4)}</td>"
+                        f"<td>{e(losses)}</td><td>{e(by_rotation)}</td></tr>")
+    if not rows:
+        return ""
+    head = ("<tr><th>Policy</th><th>Skill</th><th>Object</th><th>n</th><th>Pick failures by mechanism</th>"
+            "<th>Median speed at first finger contact (m/s)</th><th>Median handoff rotation (deg)</th>"
+            "<th>Median speed when the jaws open (m/s)</th><th>Transport grasp losses</th>"
+            "<th>Losses / transports by handoff rotation</th></tr>")
+    return (f'<h3>Failure analysis</h3><table class="failure-analysis">{head}{"".join(rows)}</table>'
+            "<p>Per the spec's appendix \"Failure Analysis\": knocked = the object moved more than 3 cm or turned more than "
+            "20 deg before it was grasped; hit scene = a collision while the object was undisturbed; a transport grasp "
+            "is lost after 4 steps without both fingers above 0.1 N within 6 cm of the grasp point (slip: a finger "
+            "lost its force; pinched beyond 6 cm: still pinched, displaced in the jaws). Results written before these "
+            "diagnostics existed have none.</p>")
+
+
 def render_html(tables: Sequence[SettingTable], video_root: Path | None = None) -> str:
     body = []
     for table in tables:
@@ -370,6 +413,7 @@ def render_html(tables: Sequence[SettingTable], video_root: Path | None = None) 
         pairs = comparable_pairs(table)
         if pairs:
             body.append(_comparison_view(table, pairs))
+        body.append(_failure_analysis_view(table))
         body.append("<h3>Outcome modes</h3>")
         for result in table.results:
             modes: dict[str, int] = {}

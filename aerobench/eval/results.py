@@ -38,7 +38,64 @@ def _cell(rows: list[Mapping]) -> dict:
         "causes": dict(Counter(r["cause"] for r in executed if r["cause"])),
         # per episode (plan index, seed, outcome), so two runs on the same starts can be compared pairwise
         "episodes": [[int(r["episode_index"]), r.get("seed"), r["outcome"]] for r in rows],
+        "failure_analysis": failure_summary(executed),
     }
+
+
+ROTATION_BINS_DEG = (2.0, 16.0)  # spec Fig. "Grasp quality": no grasp under 2 deg is lost; loss rates above 16 deg
+
+
+def _stage(row: Mapping, skill: str) -> tuple[str, dict] | None:
+    """(outcome, diagnostics) of `skill` in a row: the row itself, or its chain segment of that skill."""
+    if row["skill"] == skill:
+        return row["outcome"], row.get("diagnostics") or {}
+    for seg in row.get("segments") or ():
+        if seg["skill"] == skill:
+            return seg["outcome"], seg.get("diagnostics") or {}
+    return None
+
+
+def _median(values: list[float]) -> float | None:
+    values = sorted(v for v in values if v is not None)
+    if not values:
+        return None
+    mid = len(values) // 2
+    return values[mid] if len(values) % 2 else (values[mid - 1] + values[mid]) / 2
+
+
+def failure_summary(rows: list[Mapping]) -> dict:
+    """The spec's failure-analysis quantities over executed episodes (`annotation.failure_analysis` per episode):
+    pick mechanisms, handoff rotation, release speed, transport grasp losses by mechanism and by handoff rotation."""
+    out: dict = {}  # a stage is summarized only when its episodes carry the diagnostics (older records do not)
+    picks = [s for r in rows if (s := _stage(r, "pick")) and "speed_at_finger_contact_mps" in s[1]]
+    if picks:
+        failed = [d for outcome, d in picks if outcome != "S"]
+        out["pick"] = {
+            "median_speed_at_finger_contact_mps": _median([d.get("speed_at_finger_contact_mps") for _, d in picks]),
+            "median_handoff_rotation_deg": _median([d.get("handoff_rotation_deg") for _, d in picks]),
+            "failures": len(failed),
+            "failures_knocked_object": sum(bool(d.get("knocked_object")) for d in failed),
+            "failures_hit_scene": sum(bool(d.get("hit_scene")) and not d.get("knocked_object") for d in failed),
+        }
+    places = [s[1] for r in rows if (s := _stage(r, "place")) and "speed_at_release_mps" in s[1]]
+    if places:
+        out["place"] = {"median_speed_at_release_mps": _median([d.get("speed_at_release_mps") for d in places])}
+    transports = [(r, s[1]) for r in rows
+                  if r.get("segments") and (s := _stage(r, "nav")) and "grasp_loss_mechanism" in s[1]]
+    if transports:
+        mechanisms = Counter(d.get("grasp_loss_mechanism") for _, d in transports if d.get("grasp_loss_mechanism"))
+        bins: dict[str, list[int]] = {}
+        lo, hi = ROTATION_BINS_DEG
+        for row, d in transports:
+            rotation = (_stage(row, "pick") or ("", {}))[1].get("handoff_rotation_deg")
+            if rotation is None:
+                continue
+            name = f"<{lo:g}" if rotation < lo else (f"{lo:g}-{hi:g}" if rotation <= hi else f">{hi:g}")
+            lost_total = bins.setdefault(name, [0, 0])
+            lost_total[0] += bool(d.get("grasp_loss_mechanism"))
+            lost_total[1] += 1
+        out["transport"] = {"grasp_losses": dict(mechanisms), "losses_by_handoff_rotation_deg": bins}
+    return out
 
 
 def _chain_stages(rows: list[Mapping]) -> list[dict]:

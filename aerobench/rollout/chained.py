@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import torch
 
+from ..annotation.failure_analysis import HOLD_MAX_VIOLATIONS, HOLD_RADIUS_M
 from ..envs.checks import FailureCause
 from ..envs.tasks import get_setting
 
@@ -20,8 +21,6 @@ TRANSPORT = "transport"  # the protocol's name for a nav stage flown by the shar
 # Spec appendix "Failure Analysis", Protocol: pick <= 400 control steps, transport <= 1200, place <= 1000. Open and
 # Close are not in the protocol; they keep their skill envs' episode length (AeroOpen-v1 / AeroClose-v1).
 STAGE_MAX_STEPS = {"pick": 400, "nav": 1200, "place": 1000, "open": 1200, "close": 1200}
-HOLD_RADIUS_M = 0.06  # spec: the tool centre point stays within 6 cm of the planned grasp point
-HOLD_MAX_VIOLATIONS = 4  # spec: four consecutive violations terminate the transport
 
 
 def stage_skills(stages: Sequence[str]) -> tuple[str, ...]:

@@ -32,7 +32,8 @@ COMMON = {
 }
 PER_SKILL = {
     "pick": {"is_grasped": False, "is_grasp_held": False, "lift_height": 0.0, "is_lifted": False,
-             "object_height": 0.8, "tcp_to_grasp_point": 0.6, "is_object_supported": True},
+             "object_height": 0.8, "tcp_to_grasp_point": 0.6, "is_object_supported": True, "grasp_force_left": 0.0,
+             "grasp_force_right": 0.0, "object_displacement": 0.0, "object_rotation": 0.0},
     "place": {"is_grasped": True, "goal_distance": 0.5, "is_aligned": False, "is_support_contact": False,
               "is_released": False, "release_registered": False, "is_gripper_clear": False,
               "platform_stable_steps": 0, "collision_impulse": 0.0, "is_set_down": False,

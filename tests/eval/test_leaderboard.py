@@ -115,6 +115,10 @@ def test_html_renders_in_headless_chromium(spec_results, tmp_path):
     # the comparison view shows the first comparable pair's paired table with a verdict
     view = dom.split('<div class="compare" data-setting="TidyHouse">')[1].split('class="cmp-out">')[1].split("</div>")[0]
     assert "<td>30</td><td>15</td>" in view and re.search(r'class="verdict">[AB] better<', view)
+    # the spec's failure-analysis table, where the episodes carry its diagnostics (the paired TidyHouse rows)
+    assert dom.count('<table class="failure-analysis">') == 1
+    fa = dom.split('<table class="failure-analysis">')[1].split("</table>")[0]
+    assert "<td>13: knocked 6, hit scene 0, other 7</td><td>0.0120</td><td>1.5</td>" in fa  # F at 15-24, 27-29
     shot = tmp_path / "leaderboard.png"
     r = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1400,2400",
                         f"--screenshot={shot}", page.as_uri()], capture_output=True, text=True, timeout=120)
@@ -129,7 +133,9 @@ def _paired_results(tmp_path: Path) -> list[Path]:
     for label, outs in outcomes.items():
         rows = [{"episode_index": i, "seed": 7 * 1_000_003 + i, "setting": "TidyHouse", "policy": label, "skill": "pick",
                  "object": "sugar_box", "outcome": o, "cause": "" if o == "S" else "collision", "segments": [],
-                 "mode": "Successful grasp handoff" if o == "S" else "Collision failure"} for i, o in enumerate(outs)]
+                 "mode": "Successful grasp handoff" if o == "S" else "Collision failure",
+                 "diagnostics": {"speed_at_finger_contact_mps": 0.012, "knocked_object": i % 2 == 0, "hit_scene": False,
+                                 "handoff_rotation_deg": 1.5}} for i, o in enumerate(outs)]
         paths.append(write_results(tmp_path / "paired" / f"{label}.json", summarize(rows, {"seed": 7}, label=label)))
     return paths
 

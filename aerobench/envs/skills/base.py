@@ -422,6 +422,13 @@ class AeroSkillEnv(AerialEnv):
         self._episode_step[env_idx] = 0
         self._gripper_command[env_idx] = 1.0
         self.init_failed[env_idx] = ~self._sample_episode(env_idx)
+        if self.target is not None:  # where the object started: "knocked" (failure analysis) is measured from here
+            if not hasattr(self, "_object_start_p") or self._object_start_p.shape[0] != n:
+                self._object_start_p = torch.zeros(n, 3, device=self.device)
+                self._object_start_q = torch.zeros(n, 4, device=self.device)
+            pose = self.target.pose
+            self._object_start_p[env_idx] = pose.p[env_idx].clone()
+            self._object_start_q[env_idx] = pose.q[env_idx].clone()
         self.aim_render_camera(env_idx)
         self._signals_step = -1
 
@@ -517,6 +524,10 @@ class AeroSkillEnv(AerialEnv):
                 is_object_upright=ctx.is_upright,
                 is_object_supported=ctx.is_supported,
                 tcp_to_grasp_point=torch.linalg.norm(ctx.tcp - ctx.grasp_point, dim=-1),
+                # since the episode started: how far the object moved and how much it turned (spec "Failure Analysis")
+                object_displacement=torch.linalg.norm(ctx.object_pose.p - self._object_start_p, dim=-1),
+                object_rotation=2 * torch.acos(torch.clamp((ctx.object_pose.q * self._object_start_q).sum(-1).abs(),
+                                                           max=1.0)),
             )
         success = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         flags: list[tuple[FailureCause, torch.Tensor]] = []
