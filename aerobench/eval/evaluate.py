@@ -23,7 +23,7 @@ from ..envs.tasks import get_setting
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records
-from ..rollout.runner import Progress, RolloutRunner, RolloutSpec, plan_episodes
+from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes
 from .held_out import seen_in_training, training_starts
 from .results import summarize, write_results
 
@@ -76,7 +76,7 @@ class EvalConfig:
             setting=self.setting, skills=skills, objects=tuple(self.objects) if self.objects else None,
             episodes=self.episodes_per_object * n_objects * len(skills), num_envs=self.num_envs, seed=self.seed,
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
-            max_steps=self.max_steps, chained=bool(self.chain), shard=shard,
+            max_steps=self.max_steps, chained=bool(self.chain), shard=shard, third_person_episodes=self.video,
         )
 
 
@@ -214,10 +214,17 @@ def _portable(path: str) -> str:
 
 
 def write_episode_video(episode: EpisodeData, path: Path, fps: int = 20) -> None:
-    """The three onboard RGB cameras side by side."""
+    """The third-person view above the three onboard RGB cameras side by side (the onboard strip alone when the
+    episode has no third-person frames)."""
     from ..flight.runner import write_video
 
     frames = np.concatenate([episode.frames[f"rgb/{cam}"] for cam in CAMERAS], axis=2)
+    third = episode.frames.get(f"rgb/{THIRD_PERSON}")
+    if third is not None:  # scale the strip to the view's width (nearest neighbour: whole-pixel factor)
+        factor = max(1, third.shape[2] // frames.shape[2])
+        strip = frames.repeat(factor, axis=1).repeat(factor, axis=2)[:, :, : third.shape[2]]
+        width = min(strip.shape[2], third.shape[2])
+        frames = np.concatenate([third[:, :, :width], strip[:, :, :width]], axis=1)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_video(list(frames), path, fps=fps)
 

@@ -25,6 +25,7 @@ from ..policies import make_policy
 from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, mark_grasp_lost, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 
+THIRD_PERSON = "third_person"
 SEED_STRIDE = 1_000_003  # episode seed = base seed * stride + episode index: distinct streams per base seed
 
 
@@ -47,6 +48,7 @@ class RolloutSpec:
     sim_backend: str = "physx_cpu"
     max_steps: int | None = None  # override the env's episode length
     chained: bool = False  # a chain under the spec's chained evaluation protocol (`rollout.chained`)
+    third_person_episodes: int = 0  # episodes with a plan index below this also record the third-person view (videos)
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -234,13 +236,14 @@ class RolloutRunner:
         frames: list[dict] = []
         signals: list[dict] = []
         tasks = [base.get_instruction(i) for i in range(n)]
+        third_person = any(p.index < self.spec.third_person_episodes for p in plans)
         for _ in range(max_steps):
             if not active.any():
                 break
             action = policy.act(obs)
             if not torch.isfinite(action).all():
                 raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")
-            frame = self._frame(obs, action, base, policy)
+            frame = self._frame(obs, action, base, policy, third_person)
             obs, _, terminated, truncated, info = env.step(action)
             frames.append(frame)
             signals.append({k: v.detach().cpu() for k, v in info.items() if torch.is_tensor(v) and v.shape[:1] == (n,)})
@@ -266,7 +269,7 @@ class RolloutRunner:
             for i in range(len(plans))
         ]
 
-    def _frame(self, obs, action, base, policy) -> dict:
+    def _frame(self, obs, action, base, policy, third_person: bool = False) -> dict:
         n = base.num_envs
         frame = {
             "state": obs["agent"]["state"].detach().cpu().numpy().astype(np.float32),
@@ -279,6 +282,8 @@ class RolloutRunner:
             for cam in CAMERAS:
                 frame[f"rgb/{cam}"] = obs["sensor_data"][cam]["rgb"].cpu().numpy()
                 frame[f"depth/{cam}"] = obs["sensor_data"][cam]["depth"][..., 0].cpu().numpy().clip(0).astype(np.uint16)
+        if third_person:  # the env's human-render camera, aimed at the drone at reset (not an observation)
+            frame[f"rgb/{THIRD_PERSON}"] = base.render_rgb_array().cpu().numpy()
         return frame
 
     def _episode(self, plan, row, frames, signals, steps, truncated, init_failed, task, evaluators, base, env_id) -> EpisodeData:

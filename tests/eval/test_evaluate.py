@@ -118,3 +118,16 @@ def test_summarize_and_leaderboard_cli(tiny_eval, tmp_path):
     grid = page.split('<table class="sortable"')[1].split("</table>")[0]
     assert grid.count("<tr>") == 1 + 4  # one setting: a header row and 2 policies x 2 skills
     assert '<div class="compare" data-setting="TidyHouse">' in page  # both ran the same starts: comparable
+
+
+def test_video_shows_the_third_person_view_above_the_onboard_cameras(tmp_path):
+    """`--video 1`: episode 0 gets an mp4 with the third-person view (384x384) above the three onboard cameras;
+    episode 1 records no third-person frames and gets no video."""
+    import imageio.v3 as iio
+
+    config = EvalConfig(policy="random", setting="TidyHouse", skills=("pick",), objects=("sugar_box",),
+                        episodes_per_object=2, video=1, max_steps=6)
+    results = evaluate(config, tmp_path / "eval", command="test")
+    assert results["videos"] == ["videos/episode_000000.mp4"]
+    frames = iio.imread(tmp_path / "eval" / "videos" / "episode_000000.mp4")
+    assert frames.shape[1:] == (384 + 128, 384, 3) and frames.shape[0] >= 1
