@@ -36,7 +36,10 @@ class NavExpert(SkillExpert):
         self.heading[env_idx] = self.state().yaw[env_idx]
         for i in env_idx.tolist():
             goal = self.evaluator.target[i].cpu().numpy()
-            route = planner_for(self.env, i, self.carrying_depth).plan(position[i].cpu().numpy(), goal)
+            # the heading is held while flying, so the planner checks the drone's real footprint at it (the
+            # any-heading disk misses doorways and starts beside walls, leaving no route)
+            planner = planner_for(self.env, i, self.carrying_depth, heading=float(self.heading[i]))
+            route = planner.plan(position[i].cpu().numpy(), goal)
             self.planned[i] = route is not None
             self.route.set(i, route if route is not None else [goal])
 

@@ -6,6 +6,9 @@ batched (`RouteFollower`). A route is a list of waypoints of the airframe centre
 2. otherwise climb (or descend) to a cruise altitude, A* over a 2-D occupancy grid of that altitude slab (8-connected,
    cells blocked where a disk of the drone's reach around the centre meets a box overlapping the slab), shortcut by
    line of sight, then the vertical segment down to the goal. Cruise altitudes are tried from the goal's upwards.
+With a known flight heading the grid is blocked by the drone's real footprint at that heading (narrower than the
+any-heading disk, so doorways stay open), and the vertical climb from the start / descent to the goal only has to keep
+the clearance the drone already has there (it hovers at the start now and must reach the goal anyway).
 Returns None when no route exists (the episode start is then infeasible for the expert).
 """
 
@@ -26,8 +29,9 @@ CLEARANCE_M = 0.08  # proxy points must stay this far from boxes along a straigh
 CRUISE_ALTITUDES_M = (1.3, 1.5, 1.7, 1.9, 2.1, 2.4, 2.7, 3.0)  # tried low to high, within the workspace
 SLAB_ABOVE_M = 0.12  # rotor disks are 0.06 m above the centre, plus margin
 MAX_EXPANSIONS = 200_000
-START_SKIP_M = 0.10
-HANG_RADIUS_M = 0.06  # the gripper (and a held object) below the drone, as a small ring  # the drone is at the start: its first 10 cm are not re-checked
+START_SKIP_M = 0.10  # the drone is at the start: its first 10 cm are not re-checked
+HANG_RADIUS_M = 0.06  # the gripper (and a held object) below the drone, as a small ring
+MIN_VERTICAL_CLEARANCE_M = 0.02  # a climb / descent next to a wall may keep less than CLEARANCE_M, never less than this
 
 
 def boxes_array(boxes: Sequence[Box]) -> np.ndarray:
@@ -75,15 +79,46 @@ class RoutePlanner:
         offsets += [(0.0, 0.0, -self.below / 2)]
         return (centres[:, None, :] + np.asarray(offsets)[None]).reshape(-1, 3)
 
-    def segment_free(self, a: np.ndarray, b: np.ndarray, skip_start_m: float = 0.0) -> bool:
+    def clearance(self, centre: np.ndarray) -> float:
+        """The drone's clearance to the nearest box with its airframe centre at `centre`."""
+        if len(self.boxes) == 0:
+            return math.inf
+        return float(_point_box_distance(self._column_points(centre[None]), self.boxes).min())
+
+    def segment_free(self, a: np.ndarray, b: np.ndarray, skip_start_m: float = 0.0, clearance: float = CLEARANCE_M) -> bool:
         """Whether the drone can fly from `a` to `b`; the first `skip_start_m` are not checked (it is already there)."""
         length = float(np.linalg.norm(b - a))
         n = max(2, int(length / SEGMENT_STEP_M) + 1)
         t = np.linspace(min(skip_start_m / max(length, 1e-9), 1.0), 1, n)
         centres = a[None] + t[:, None] * (b - a)[None]
-        if len(self.boxes) == 0:
+        boxes = self._boxes_near(a, b, clearance)
+        if len(boxes) == 0:
             return True
-        return bool(_point_box_distance(self._column_points(centres), self.boxes).min() > CLEARANCE_M)
+        return bool(_point_box_distance(self._column_points(centres), boxes).min() > clearance)
+
+    def _boxes_near(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
+        """The boxes a drone flying from `a` to `b` could come within `clearance` of (bounding spheres against the
+        segment): most of a house is far from any one segment, and the line-of-sight shortcut checks many."""
+        if len(self.boxes) == 0:
+            return self.boxes
+        ab = b - a
+        t = np.clip(((self.boxes[:, :3] - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+        gap = np.linalg.norm(self.boxes[:, :3] - (a + t[:, None] * ab), axis=-1)
+        return self.boxes[gap <= np.linalg.norm(self.boxes[:, 3:6], axis=-1) + self._extent + clearance + 0.01]
+
+    @property
+    def _extent(self) -> float:
+        """Farthest any sampled point of the drone is from its centre."""
+        if self.footprint is not None:
+            return float(np.linalg.norm(self.footprint, axis=-1).max())
+        return math.hypot(self.reach, max(self.below, SLAB_ABOVE_M))
+
+    def _vertical_free(self, a: np.ndarray, b: np.ndarray, at: np.ndarray, skip_start_m: float = 0.0) -> bool:
+        """A climb or descent between `a` and `b` at the xy of `at` (the start or the goal, where the drone must be
+        anyway): it may keep the clearance the drone has at `at` when that is below CLEARANCE_M (hovering beside a
+        wall), but must not come closer to anything than that."""
+        clearance = min(CLEARANCE_M, self.clearance(at) - 0.005)
+        return clearance >= MIN_VERTICAL_CLEARANCE_M and self.segment_free(a, b, skip_start_m, clearance)
 
     # grid search -----------------------------------------------------------------------------------------------------
     def _occupancy(self, z: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -94,7 +129,11 @@ class RoutePlanner:
         lo_z, hi_z = z - self.below, z + SLAB_ABOVE_M
         in_slab = (self.boxes[:, 2] + self.boxes[:, 5] > lo_z) & (self.boxes[:, 2] - self.boxes[:, 5] < hi_z)
         blocked = np.zeros(len(cells), dtype=bool)
-        if in_slab.any():
+        if in_slab.any() and self.footprint is not None:
+            # the real footprint at the held heading, as its horizontal outline (the slab covers its heights)
+            for dx, dy in np.unique(np.round(self.footprint[:, :2], 4), axis=0):
+                blocked |= _rect_distance_2d(cells + np.array([dx, dy]), self.boxes[in_slab]).min(-1) < CLEARANCE_M
+        elif in_slab.any():
             blocked = _rect_distance_2d(cells, self.boxes[in_slab]).min(-1) < self.reach + CLEARANCE_M
         margin = self.reach + 0.05
         blocked |= (cells[:, 0] < self.lo[0] + margin) | (cells[:, 0] > self.hi[0] - margin)
@@ -155,7 +194,7 @@ class RoutePlanner:
             if z + SLAB_ABOVE_M > self.hi[2] - 0.1 or z - self.below < self.lo[2] + 0.1:
                 continue
             up, over = np.array([start[0], start[1], z]), np.array([goal[0], goal[1], z])
-            if not (self.segment_free(start, up, START_SKIP_M) and self.segment_free(over, goal)):
+            if not (self._vertical_free(start, up, start, START_SKIP_M) and self._vertical_free(over, goal, goal)):
                 continue
             xs, ys, blocked = self._occupancy(z)
             path = self._astar(blocked, _cell(up, xs, ys), _cell(over, xs, ys))
@@ -199,7 +238,9 @@ def planner_for(
             pts += [fk[k][0].numpy() for k in ("shoulder", "elbow", "wrist")]
         c, s = math.cos(heading), math.sin(heading)
         rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-        hanging = [(0.0, 0.0, -below)] + [(HANG_RADIUS_M * math.cos(a), HANG_RADIUS_M * math.sin(a), -below) for a in (0, 1.57, 3.14, 4.71)]
+        # a held object is wider than the bare gripper: its footprint radius rings the hanging column
+        hang = max(HANG_RADIUS_M, float(env.target_radius[env_index])) if carrying_depth > 0 else HANG_RADIUS_M
+        hanging = [(0.0, 0.0, -below)] + [(hang * math.cos(a), hang * math.sin(a), -below) for a in (0, 1.57, 3.14, 4.71)]
         footprint = np.concatenate([np.asarray(pts) @ rot.T, np.asarray(hanging)])
     return RoutePlanner(
         boxes, env.workspace_lo[env_index].cpu().numpy(), env.workspace_hi[env_index].cpu().numpy(), reach, below, footprint

@@ -18,9 +18,10 @@ CARD_FILE = "README.md"
 
 def generate_command(spec: dict, out: str | Path) -> str:
     """The `aerobench generate` command line that wrote a dataset, rebuilt from its generation spec."""
-    parts = ["aerobench generate", f"--setting {spec['setting']}", f"--skills {','.join(spec['skills'])}",
-             f"--episodes {spec['episodes']}", f"--seed {spec['seed']}", f"--keep {spec['keep']}",
-             f"--policy {spec['policy']}", f"--controller {spec['controller']}"]
+    parts = ["aerobench generate", f"--setting {spec['setting']}", f"--skills {','.join(spec['skills'])}"]
+    for key in ("episodes", "seed", "keep", "policy", "controller"):  # a hand-written spec may leave some out
+        if spec.get(key) is not None:
+            parts.append(f"--{key} {spec[key]}")
     if spec.get("objects"):
         parts.append(f"--objects {','.join(spec['objects'])}")
     if spec.get("platform"):
@@ -42,6 +43,8 @@ def dataset_card(root: str | Path) -> str:
 
     root = Path(root)
     spec, info = read_generation_spec(root), dataset_info(root)
+    spec = {k: "not recorded" for k in ("keep", "policy", "controller", "seed")} | {
+        k: v for k, v in spec.items() if v is not None}
     counts = info["counts"]
     platform = spec.get("platform") or (info["robot_type"] or "").removeprefix("aerobench_") or "per skill"
     cameras = "three 128x128 RGB-D cameras" if spec.get("record_cameras", True) else "state only (no cameras)"

@@ -206,6 +206,9 @@ class AeroSkillEnv(AerialEnv):
         self.target_grasp_width = t([s.grasp_width_m for s in specs])
         self.target_radius = t([s.footprint_radius_m for s in specs])
         self.target_grasp_point = t([s.grasp_point_m for s in specs])  # (N, 3), object frame
+        # a bowl is grasped anywhere on its rim (the pick plans the rim point along its heading): its planned grasp
+        # point is the rim circle through `target_grasp_point` (radius = its x, height = its z), not the +x point
+        self.target_grasps_rim = torch.tensor([s.shape == "bowl" for s in specs], dtype=torch.bool, device=self.device)
 
     def _pack_supports(self) -> None:
         width = max(len(layout.supports) for layout in self.layouts)
@@ -478,13 +481,23 @@ class AeroSkillEnv(AerialEnv):
             ctx.object_pose, ctx.object_rotation = pose, R
             ctx.object_velocity = self.target.linear_velocity
             ctx.object_bottom_z = pose.p[:, 2]
-            ctx.grasp_point = pose.p + (R @ self.target_grasp_point[..., None])[..., 0]
+            ctx.grasp_point = self._planned_grasp_point(pose.p, R, ctx.tcp)
             ctx.is_grasped = is_pinched(readout.finger_on_target, opening_dirs, GRASP_FORCE_N)
             ctx.is_grasp_held = (torch.linalg.norm(readout.finger_on_target, dim=-1) > HELD_FORCE_N).all(-1)
             lift = support_force(readout.target_net, readout.finger_on_target)[:, 2]
             ctx.is_supported = lift >= SUPPORTED_WEIGHT_FRACTION * self.target_mass * 9.81
             ctx.is_upright = R[:, 2, 2] >= UPRIGHT_COS
         return ctx
+
+    def _planned_grasp_point(self, position: torch.Tensor, R: torch.Tensor, tcp: torch.Tensor) -> torch.Tensor:
+        """World position of the object's planned grasp point `(N, 3)`; for a rim grasp, the rim point nearest the
+        tool centre point (a bowl turning about its axis in the jaws is still held where it was planned)."""
+        g = self.target_grasp_point
+        point = position + (R @ g[..., None])[..., 0]
+        local = (R.transpose(-1, -2) @ (tcp - position)[..., None])[..., 0]
+        direction = local[:, :2] / torch.linalg.norm(local[:, :2], dim=-1, keepdim=True).clamp_min(1e-6)
+        rim = torch.cat([direction * g[:, :1], g[:, 2:3]], dim=-1)
+        return torch.where(self.target_grasps_rim[:, None], position + (R @ rim[..., None])[..., 0], point)
 
     def evaluate(self) -> dict:
         """All per-step signals, `(N,)` tensors; computed once per control step (ManiSkill may call this again)."""

@@ -1,0 +1,89 @@
+"""Route planner: the drone's real footprint at its held heading, climbs beside walls, the box prefilter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from aerobench.envs.geometry import drone_proxy_points_body
+from aerobench.envs.platforms import GRIPPER_PLATFORM
+from aerobench.expert.planner import CLEARANCE_M, RoutePlanner
+
+ROTORS = GRIPPER_PLATFORM.rotors
+REACH = ROTORS.arm_m * math.sqrt(2) + ROTORS.disk_radius_m  # the any-heading disk
+BELOW = -GRIPPER_PLATFORM.grasp_point_m[2] + 0.03 + 0.05  # gripper plus a held object's grasp height
+LO, HI = (-3.0, -3.0, 0.0), (3.0, 3.0, 2.7)
+
+
+def wall(x: float, y_lo: float, y_hi: float, height: float = 2.7) -> list[float]:
+    """A full-height 0.1 m partition along y at `x` (center, half sizes, yaw)."""
+    return [x, (y_lo + y_hi) / 2, height / 2, 0.05, (y_hi - y_lo) / 2, height / 2, 0.0]
+
+
+def footprint(heading: float = 0.0) -> np.ndarray:
+    c, s = math.cos(heading), math.sin(heading)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    hanging = np.array([(0.0, 0.0, -BELOW)] + [(0.06 * math.cos(a), 0.06 * math.sin(a), -BELOW) for a in (0, 1.57, 3.14, 4.71)])
+    return np.concatenate([drone_proxy_points_body(GRIPPER_PLATFORM)[0].numpy() @ rot.T, hanging])
+
+
+def planner(boxes: list[list[float]], heading: float | None = 0.0) -> RoutePlanner:
+    fp = None if heading is None else footprint(heading)
+    return RoutePlanner(np.array(boxes, dtype=np.float64), LO, HI, REACH, BELOW, fp)
+
+
+def route_clearance(p: RoutePlanner, start: np.ndarray, route: list[np.ndarray]) -> float:
+    points = [start] + list(route)
+    worst = math.inf
+    for a, b in zip(points[:-1], points[1:]):
+        for t in np.linspace(0, 1, 40):
+            worst = min(worst, p.clearance(a + t * (b - a)))
+    return worst
+
+
+def test_footprint_grid_passes_a_doorway_the_any_heading_disk_does_not():
+    # partition at x = 0 with a 1.0 m doorway: on the 0.1 m grid the disk (0.39 m + 0.08 m clearance) finds no free
+    # cell in it, the level footprint (0.32 m + 0.08 m) does
+    boxes = [wall(0.0, -3.0, -0.5), wall(0.0, 0.5, 3.0)]
+    start, goal = np.array([-1.5, -1.5, 1.3]), np.array([1.5, 1.5, 1.3])
+    assert planner(boxes, heading=None).plan(start, goal) is None
+    route = planner(boxes).plan(start, goal)
+    assert route is not None and np.allclose(route[-1], goal)
+    assert route_clearance(planner(boxes), start, route) > CLEARANCE_M - 0.01
+
+
+def test_climb_beside_a_wall_keeps_the_clearance_the_drone_has():
+    # hovering 0.06 m (less than CLEARANCE_M) beside a wall, behind a partition: the route climbs there, then leaves
+    boxes = [wall(1.0, -3.0, 3.0, height=1.0), wall(-0.8, -3.0, 3.0)]
+    rim = ROTORS.arm_m + ROTORS.disk_radius_m
+    start = np.array([-0.8 + 0.05 + rim + 0.06, 0.0, 1.3])
+    goal = np.array([2.0, 0.0, 1.3])
+    p = planner(boxes)
+    assert p.clearance(start) < CLEARANCE_M
+    route = p.plan(start, goal)
+    assert route is not None
+    assert route_clearance(p, start, route) >= p.clearance(start) - 0.01
+
+
+def test_no_route_from_a_start_touching_a_wall():
+    boxes = [wall(1.0, -3.0, 3.0, height=1.0), wall(-0.8, -3.0, 3.0)]
+    rim = ROTORS.arm_m + ROTORS.disk_radius_m
+    start = np.array([-0.8 + 0.05 + rim + 0.005, 0.0, 1.3])
+    assert planner(boxes).plan(start, np.array([2.0, 0.0, 1.3])) is None
+
+
+@pytest.mark.parametrize("heading", [None, 0.0, 0.7])
+def test_box_prefilter_matches_the_full_check(heading):
+    rng = np.random.default_rng(0)
+    boxes = np.concatenate([rng.uniform(-2.5, 2.5, (30, 3)) * [1, 1, 0.5] + [0, 0, 1.2],
+                            rng.uniform(0.05, 0.6, (30, 3)), rng.uniform(-3, 3, (30, 1))], -1)
+    fp = None if heading is None else footprint(heading)
+    filtered = RoutePlanner(boxes, LO, HI, REACH, BELOW, fp)
+    unfiltered = RoutePlanner(boxes, LO, HI, REACH, BELOW, fp)
+    unfiltered._boxes_near = lambda a, b, clearance: boxes
+    segments = rng.uniform([-2.5, -2.5, 0.8], [2.5, 2.5, 2.2], (80, 2, 3))
+    results = [filtered.segment_free(a, b) for a, b in segments]
+    assert results == [unfiltered.segment_free(a, b) for a, b in segments]
+    assert any(results) and not all(results)
