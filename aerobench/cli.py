@@ -13,6 +13,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from .progress import progress_bar, ray_progress_bar
+
 
 def _quiet_offline_environment() -> None:
     """Offline by default, nothing waits on a download prompt, and ManiSkill's start-up warnings stay quiet."""
@@ -294,7 +296,7 @@ def _run_generate(args) -> int:
             connect(args.ray)  # no cluster at the address: one line before any work
     except ValueError as e:
         raise UserError(str(e)) from None
-    bar = _progress_bar(spec)
+    bar = progress_bar(spec)
     try:
         if args.ray is not None:
             return _generate_on_ray(args, spec, generate_on_ray)
@@ -308,55 +310,12 @@ def _run_generate(args) -> int:
 
 
 def _generate_on_ray(args, spec, generate_on_ray) -> int:
-    update, close = _ray_progress_bar(spec)
+    update, close = ray_progress_bar(spec)
     root = generate_on_ray(spec, args.out, args.keep, args.part_size, address=args.ray, shards=args.shards,
                            on_progress=update)
     close()
     print(f"{spec.episodes} episodes in {args.out}, merged" + ("" if root else " (no episode kept)"))
     return 0
-
-
-def _ray_progress_bar(spec):
-    """One bar over every Ray shard: episodes done, success so far, episodes per minute."""
-    from tqdm import tqdm
-
-    state = {}
-
-    def update(done: int, successes: int, seconds: float) -> None:
-        if "bar" not in state:
-            state["bar"] = tqdm(total=spec.episodes, unit="ep", desc=f"{spec.setting} {','.join(spec.skills)} (ray)",
-                                dynamic_ncols=True)
-        bar = state["bar"]
-        bar.n = done
-        rate = successes / done if done else 0.0
-        bar.set_postfix_str(f"success {successes}/{done} ({rate:.0%}), {60 * done / max(seconds, 1e-9):.1f} ep/min")
-        bar.refresh()
-
-    def close() -> None:
-        if "bar" in state:
-            state["bar"].close()
-
-    return update, close
-
-
-def _progress_bar(spec):
-    from tqdm import tqdm
-
-    state = {}
-
-    def update(progress, final: bool = False):
-        bar = state.get("bar")
-        if bar is None:
-            bar = state["bar"] = tqdm(total=progress.total, initial=progress.done - progress.run_done, unit="ep",
-                                      desc=f"{spec.setting} {','.join(spec.skills)}", dynamic_ncols=True)
-        bar.n = progress.done
-        rate = progress.successes / progress.run_done if progress.run_done else 0.0
-        bar.set_postfix_str(f"success {progress.successes}/{progress.run_done} ({rate:.0%}), {progress.rate_per_min:.1f} ep/min")
-        bar.refresh()
-        if final:
-            bar.close()
-
-    return update
 
 
 def _add_dataset(sub) -> None:
@@ -467,8 +426,8 @@ def _run_eval(args) -> int:
             connect(args.ray)
     except ValueError as e:
         raise UserError(str(e)) from None
-    bar = _progress_bar(spec)
-    ray_update, ray_close = _ray_progress_bar(spec) if args.ray is not None else (None, lambda: None)
+    bar = progress_bar(spec)
+    ray_update, ray_close = ray_progress_bar(spec) if args.ray is not None else (None, lambda: None)
     try:
         results = evaluate(config, args.out, on_episode=lambda ep, progress: bar(progress),
                            command="aerobench " + shlex.join(sys.argv[1:]), on_progress=ray_update)
