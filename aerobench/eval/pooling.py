@@ -13,7 +13,8 @@ import random
 from collections import Counter
 from collections.abc import Sequence
 
-from .stats import standard_error, wilson_interval
+from .results import rate_fields
+from .stats import standard_error
 
 BOOTSTRAP_SAMPLES = 10_000
 BOOTSTRAP_SEED = 0  # the interval is part of a committed table: the same runs give the same interval
@@ -29,10 +30,8 @@ def bootstrap_mean_interval(values: Sequence[float], samples: int = BOOTSTRAP_SA
 
 
 def _pooled_cell(cells: list[dict]) -> dict:
-    n, k = sum(c["n"] for c in cells), sum(c["successes"] for c in cells)
-    lo, hi = wilson_interval(k, n)
     cell = {key: cells[0][key] for key in ("skill", "object")}
-    cell.update(n=n, successes=k, success_rate=k / n if n else 0.0, se=standard_error(k, n), wilson95=[lo, hi],
+    cell.update(rate_fields(sum(c["successes"] for c in cells), sum(c["n"] for c in cells)),
                 init_failures=sum(c["init_failures"] for c in cells))
     for key in ("outcomes", "modes", "causes"):
         cell[key] = dict(sum((Counter(c[key]) for c in cells), Counter()))

@@ -22,17 +22,18 @@ RESULTS_FORMAT = "aerobench-results"
 RESULTS_VERSION = 1
 
 
+def rate_fields(successes: int, n: int) -> dict:
+    """A cell's success statistics: n, successes, rate, binomial SE, Wilson 95%."""
+    lo, hi = wilson_interval(successes, n)
+    return {"n": n, "successes": successes, "success_rate": successes / n if n else 0.0,
+            "se": standard_error(successes, n), "wilson95": [lo, hi]}
+
+
 def _cell(rows: list[Mapping]) -> dict:
     executed = [r for r in rows if r["outcome"] != "I"]
-    n, k = len(executed), sum(r["outcome"] == "S" for r in executed)
-    lo, hi = wilson_interval(k, n)
     return {
-        "n": n,
-        "successes": k,
-        "success_rate": k / n if n else 0.0,
-        "se": standard_error(k, n),
-        "wilson95": [lo, hi],
-        "init_failures": len(rows) - n,
+        **rate_fields(sum(r["outcome"] == "S" for r in executed), len(executed)),
+        "init_failures": len(rows) - len(executed),
         "outcomes": dict(Counter(r["outcome"] for r in executed)),
         "modes": dict(Counter(r["mode"] for r in executed)),
         "causes": dict(Counter(r["cause"] for r in executed if r["cause"])),

@@ -46,23 +46,18 @@ from ..control.virtual_joints import AirframeState
 from ..geometry import (
     body_points_to_world,
     drone_proxy_points_body,
-    is_pose_free,
     min_distance_to_boxes,
     pack_boxes,
     point_box_distance,
 )
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
-from ..scenes import articulated, generate_layout
+from ..scenes import generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
 from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
+from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
 
-SUPPORT_KINDS = ("table", "counter", "shelf", "cabinet", "sofa", "vehicle", "fridge_shelf", "drawer")
-START_DISTANCE_M = (0.5, 1.0)  # spec: skill episodes start 0.5-1 m from the target
-START_CLEARANCE_M = 0.10  # drone proxy points this far from any box at the start
-START_CANDIDATES = 96
-PARKING_DEPTH_M = -2.0  # distractors that find no room wait under the floor
 RENDER_EYE_CANDIDATES = 12
 GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force
 HELD_FORCE_N = 0.1  # spec (chained evaluation, Open/Close release): "both fingers exceed 0.1 N"
@@ -97,7 +92,7 @@ class StepContext:
     is_upright: torch.Tensor | None = None
 
 
-class AeroSkillEnv(AerialEnv):
+class AeroSkillEnv(EpisodeStarts, AerialEnv):
     """Base of AeroPick/Place/Nav/Open/Close and AeroSequential. Subclasses set `skill` and `_make_evaluators`."""
 
     SUPPORTED_OBS_MODES = ("state", "state_dict", "none", "sensor_data", "rgb", "depth", "rgbd")
@@ -269,141 +264,6 @@ class AeroSkillEnv(AerialEnv):
     def _handle_links(self) -> list:
         """Fixture links whose handles the fingers may pinch (Open/Close)."""
         return []
-
-    # ----------------------------------------------------------------------------------------------------------------
-    # Episode sampling helpers (batched over the envs being reset)
-    # ----------------------------------------------------------------------------------------------------------------
-    def sample_supports(self, env_idx: torch.Tensor, kinds: tuple[str, ...]) -> tuple[torch.Tensor, torch.Tensor]:
-        """A random support of one of `kinds` per env: `(M,)` index and `(M,)` ok flag (False: the layout has none)."""
-        table = self.supports[env_idx]
-        kind_ids = torch.tensor([SUPPORT_KINDS.index(k) for k in kinds if k in SUPPORT_KINDS], device=self.device)
-        allowed = (table[..., 7] > 0.5) & (table[..., 6][..., None] == kind_ids).any(-1)
-        ok = allowed.any(-1)
-        weights = allowed.float() + (~ok)[:, None].float()  # any row stays samplable; ok says whether it is valid
-        return torch.multinomial(weights, 1)[:, 0], ok
-
-    def sample_on_support(self, env_idx: torch.Tensor, index: torch.Tensor, margin: torch.Tensor) -> torch.Tensor:
-        """A uniform point `(M, 3)` on each chosen support, `margin` `(M,)` inside its edges, at the surface height."""
-        row = self.supports[env_idx, index]
-        half = (row[:, 2:4] - margin[:, None]).clamp_min(0.0)
-        local = (torch.rand(len(env_idx), 2, device=self.device) * 2 - 1) * half
-        c, s = torch.cos(row[:, 5]), torch.sin(row[:, 5])
-        xy = row[:, 0:2] + torch.stack([c * local[:, 0] - s * local[:, 1], s * local[:, 0] + c * local[:, 1]], -1)
-        return torch.cat([xy, row[:, 4:5]], dim=-1)
-
-    def inside_support(self, env_idx: torch.Tensor, index: torch.Tensor, xy: torch.Tensor, margin: float = 0.0) -> torch.Tensor:
-        row = self.supports[env_idx, index]
-        d = xy - row[:, 0:2]
-        c, s = torch.cos(-row[:, 5]), torch.sin(-row[:, 5])
-        local = torch.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], -1)
-        return (local.abs() <= row[:, 2:4] - margin).all(-1)
-
-    def obstacle_boxes(self, env_idx: torch.Tensor) -> torch.Tensor:
-        """Packed static boxes plus the fixtures (fridge, drawer) in their current state, for the given envs."""
-        if not self.built.fixtures:
-            return self.static_boxes[env_idx]
-        names = list(self.built.fixtures)
-        fixtures = articulated.packed_fixture_boxes(names, [self.built.fixtures[n] for n in names])
-        return torch.cat([self.static_boxes, fixtures], dim=1)[env_idx]
-
-    def sample_start(
-        self,
-        env_idx: torch.Tensor,
-        anchor: torch.Tensor,
-        min_tcp_height: torch.Tensor,
-        face_anchor: bool = False,
-        carried_points: torch.Tensor | None = None,
-        distance: tuple[float, float] = START_DISTANCE_M,
-        reject=None,
-        from_airframe: bool = False,
-        heading: torch.Tensor | None = None,
-        within_cone: tuple[torch.Tensor, float] | None = None,
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """A collision-free level start with the tool centre point `distance` from `anchor` `(M, 3)`.
-
-        Returns the airframe position `(M, 3)`, heading `(M,)` and whether a free start was found `(M,)`.
-        `carried_points` `(M, Q, 3)` are points of a held object relative to the tool centre point (world axes);
-        `reject(tcp (M, K, 3)) -> (M, K)` vetoes candidates; `from_airframe` measures the distance from the
-        airframe centre instead of the tool centre point (navigation targets); `heading` `(M,)` fixes the yaw;
-        `within_cone` (axis `(M, 3)`, min cosine) keeps the start in front of the anchor (a door's outward normal).
-        """
-        m, k = len(env_idx), START_CANDIDATES
-        dev = self.device
-        direction = torch.randn(m, k, 3, device=dev)
-        direction[..., 2] = direction[..., 2].abs() * 0.6  # starts from level to well above the target
-        direction = direction / torch.linalg.norm(direction, dim=-1, keepdim=True)
-        if within_cone is not None:  # mirror candidates behind the anchor to its front
-            axis, _ = within_cone
-            along = (direction * axis[:, None]).sum(-1, keepdim=True)
-            direction = torch.where(along < 0, direction - 2 * along * axis[:, None], direction)
-        dist = distance[0] + torch.rand(m, k, 1, device=dev) * (distance[1] - distance[0])
-        tcp = anchor[:, None, :] + dist * direction
-        yaw = (torch.rand(m, k, device=dev) * 2 - 1) * math.pi
-        offset = torch.tensor(self.platform.grasp_point_m, device=dev)
-        if face_anchor:  # the arm reaches forward: look at the anchor
-            to_anchor = anchor[:, None, :2] - tcp[..., :2]
-            yaw = torch.atan2(to_anchor[..., 1], to_anchor[..., 0])
-        if heading is not None:
-            yaw = heading[:, None].expand(m, k)
-        c, s = torch.cos(yaw), torch.sin(yaw)
-        rotated = torch.stack([c * offset[0] - s * offset[1], s * offset[0] + c * offset[1], offset[2].expand_as(c)], -1)
-        if from_airframe:
-            airframe, tcp = tcp, tcp + rotated
-        else:
-            airframe = tcp - rotated
-        boxes = self.obstacle_boxes(env_idx)
-        free = is_pose_free(airframe, yaw, boxes, self.start_proxy_points, START_CLEARANCE_M + self.proxy_radius)
-        lo, hi = self.workspace_lo[env_idx][:, None], self.workspace_hi[env_idx][:, None]
-        free &= (airframe[..., :2] > lo[..., :2] + 0.4).all(-1) & (airframe[..., :2] < hi[..., :2] - 0.4).all(-1)
-        free &= (airframe[..., 2] > lo[..., 2] + self.safety.min_altitude_m + 0.1)
-        free &= airframe[..., 2] < hi[..., 2] - self.safety.ceiling_margin_m - 0.2
-        free &= tcp[..., 2] >= min_tcp_height[:, None]
-        if reject is not None:
-            free &= ~reject(tcp)
-        if within_cone is not None:
-            axis, min_cos = within_cone
-            free &= (direction * axis[:, None]).sum(-1) >= min_cos
-        if carried_points is not None:
-            pts = (tcp[:, :, None, :] + carried_points[:, None]).reshape(m, -1, 3)
-            d = point_box_distance(pts, boxes).reshape(m, k, -1)
-            free &= d.min(-1).values > START_CLEARANCE_M
-        ok = free.any(-1)
-        pick = torch.argmax(free.int(), dim=-1)
-        rows = torch.arange(m, device=dev)
-        return airframe[rows, pick], yaw[rows, pick], ok
-
-    def set_drone(self, env_idx: torch.Tensor, position: torch.Tensor, yaw: torch.Tensor, finger_half_opening=None) -> None:
-        qpos = self.agent.robot.get_qpos().clone()
-        new = self.agent.hover_qpos(position, yaw)
-        if finger_half_opening is not None:
-            for name in FINGER_JOINT_NAMES:
-                new[:, self.agent.robot.active_joints_map[name].active_index[0]] = finger_half_opening
-        qpos[env_idx] = new
-        self.agent.robot.set_qpos(qpos)
-        self.agent.robot.set_qvel(torch.zeros_like(qpos))
-
-    def place_object(self, actor: Actor, env_idx: torch.Tensor, bottom: torch.Tensor, yaw: torch.Tensor) -> None:
-        """Upright at `bottom` `(M, 3)` (origin at the object's bottom centre) with heading `yaw`."""
-        q = torch.stack([torch.cos(yaw / 2), torch.zeros_like(yaw), torch.zeros_like(yaw), torch.sin(yaw / 2)], -1)
-        actor.set_pose(Pose.create_from_pq(p=bottom + torch.tensor([0, 0, 0.002], device=self.device), q=q))
-        actor.set_linear_velocity(torch.zeros(len(env_idx), 3, device=self.device))
-        actor.set_angular_velocity(torch.zeros(len(env_idx), 3, device=self.device))
-
-    def place_distractors(self, env_idx: torch.Tensor, avoid: torch.Tensor, kinds: tuple[str, ...]) -> None:
-        """Distractors on random supports, away from `avoid` `(M, 3)` (the target) and from each other."""
-        placed = [avoid]
-        nowhere = torch.full((len(env_idx), 3), 1e6, device=self.device)  # a parked distractor blocks no spot
-        for i, actor in enumerate(self.distractors):
-            index, ok = self.sample_supports(env_idx, kinds)
-            parked = torch.tensor([0.0, 0.0, PARKING_DEPTH_M - i], device=self.device).expand(len(env_idx), 3)
-            best, found = parked, torch.zeros(len(env_idx), dtype=torch.bool, device=self.device)
-            for _ in range(8):  # a few tries, the last clear one stands; with none it stays parked, never on the goal
-                point = self.sample_on_support(env_idx, index, torch.full((len(env_idx),), 0.12, device=self.device))
-                clear = torch.stack([torch.linalg.norm((point - p)[:, :2], dim=-1) for p in placed]).min(0).values > 0.25
-                best = torch.where((clear & ok)[:, None], point, best)
-                found |= clear & ok
-            self.place_object(actor, env_idx, best, (torch.rand(len(env_idx), device=self.device) * 2 - 1) * math.pi)
-            placed.append(torch.where(found[:, None], best, nowhere))
 
     # ----------------------------------------------------------------------------------------------------------------
     # Episode

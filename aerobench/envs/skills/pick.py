@@ -18,7 +18,6 @@ PICK_LIFT_M = 0.10  # lift threshold above the instance's own resting height (so
 PICK_HOLD_STEPS = 10  # consecutive control steps grasped and lifted (0.5 s)
 START_ABOVE_OBJECT_M = 0.15  # the tool centre point starts at least this far above the object's top
 ROUND_SHAPES = ("cylinder", "bowl")  # round about z: any heading on the room axes grasps them
-BOWL_PINCH_BELOW_RIM_M = 0.015  # the bowl is pinched this far below its rim (objects.ObjectSpec.grasp_point_m)
 
 
 def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, is_round: torch.Tensor) -> torch.Tensor:
@@ -40,12 +39,6 @@ class PickEvaluator(SkillEvaluator):
         self.hold_streak = self.zeros(torch.long)
         specs = env.target_specs
         self.is_round = torch.tensor([s.shape in ROUND_SHAPES for s in specs], dtype=torch.bool, device=self.device)
-        self.is_bowl = torch.tensor([s.shape == "bowl" for s in specs], dtype=torch.bool, device=self.device)
-        # bowl: rim radius of the pinch point and its height above the bottom
-        self.bowl_rim = torch.tensor(
-            [[s.size_m[0] / 2 - s.size_m[2] / 2, s.size_m[1] - BOWL_PINCH_BELOW_RIM_M] if s.shape == "bowl" else [0.0, 0.0]
-             for s in specs], device=self.device,
-        )
         self.heading_period = torch.where(self.is_round, math.pi / 2, math.pi)
         self.heading = self.zeros()  # the grasp heading planned when the skill starts
 
@@ -77,8 +70,9 @@ class PickEvaluator(SkillEvaluator):
         zero = torch.zeros_like(self.heading)
         radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), zero], -1)
         side = torch.sign((radial * (tcp - pose.p)).sum(-1, keepdim=True) + 1e-9)
-        rim = pose.p + self.bowl_rim[:, :1] * side * radial + torch.stack([zero, zero, self.bowl_rim[:, 1]], -1)
-        return torch.where(self.is_bowl[:, None], rim, planned)
+        g = self.env.target_grasp_point  # a rim grasp's pinch point: rim radius (x) and height above the bottom (z)
+        rim = pose.p + g[:, :1] * side * radial + torch.stack([zero, zero, g[:, 2]], -1)
+        return torch.where(self.env.target_grasps_rim[:, None], rim, planned)
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(
