@@ -89,12 +89,14 @@ class EpisodeRecord:
         policy: str,
         segments: Sequence[Segment] = (),
     ) -> EpisodeRecord:
-        """A record from `categorize`'s result (and, for a chain, `cut_segments`' segments)."""
+        """A record from `categorize`'s result (and, for a chain, `cut_segments`' segments: the outcome is the final
+        stage's, with its events relative to that stage's start as in its segment; `steps` is the whole rollout's)."""
         return cls(
             episode_index=episode_index, parent_id=parent_id, seed=seed, shard=shard, setting=setting,
             skill=skill or outcome.skill, object=object, platform=platform, policy=policy,
             outcome=str(outcome.outcome), mode=outcome.mode, cause=outcome.cause, events=outcome.events.as_dict(),
-            steps=outcome.steps, segments=tuple(s.to_dict() for s in segments), diagnostics=outcome.diagnostics,
+            steps=segments[-1].start + outcome.steps if segments else outcome.steps,
+            segments=tuple(s.to_dict() for s in segments), diagnostics=outcome.diagnostics,
         )
 
     def to_dict(self) -> dict:

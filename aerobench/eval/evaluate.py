@@ -22,7 +22,7 @@ import numpy as np
 from ..envs.tasks import get_setting
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
-from ..rollout.records import RecordSink, read_records
+from ..rollout.records import RecordSink, read_records, run_record_files, unique_records
 from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes
 from .held_out import seen_in_training, training_starts
 from .results import summarize, write_results
@@ -94,11 +94,12 @@ def evaluate(
     spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0)
     held_out = held_out_check(config, spec)
     if config.ray is not None:
-        record_files = _run_on_ray(config, out, on_progress)
+        _run_on_ray(config, out, on_progress)
     elif config.workers == 1:
-        record_files = [run_shard(config, out, (0, 1), on_episode)]
+        run_shard(config, out, (0, 1), on_episode)
     else:
-        record_files = _run_in_workers(config, out, on_episode)
+        _run_in_workers(config, out, on_episode)
+    record_files = run_record_files(out, _run_spec(config, spec))  # every shard file, whatever layout wrote it
     provenance = {
         "policy": config.policy, "checkpoint": _resolved(config.checkpoint),
         "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(spec.skills),
@@ -108,7 +109,7 @@ def evaluate(
         "records": ",".join(str(f.relative_to(out)) for f in record_files),
         "command": command, "seen_in_training": held_out,
     }
-    rows = sorted((r for f in record_files if f.is_file() for r in read_records(f)), key=lambda r: r["episode_index"])
+    rows = unique_records(record_files)
     results = summarize(rows, provenance, label=config.label)
     videos = sorted(out.glob("**/videos/*.mp4"))
     if videos:
@@ -122,7 +123,11 @@ def run_shard(
 ) -> Path:
     """One shard's episodes into `folder/records.jsonl` (continuing what is there); returns that file."""
     spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0, shard=shard)
-    sink = RecordSink(folder, {**spec.as_dict(), "episodes_per_object": config.episodes_per_object})
+    root = folder.parent.parent if folder.parent.name == "shards" else folder
+    # an episode another shard file of this run holds (e.g. written under an earlier shard layout) is not run again
+    elsewhere = {int(r["episode_index"]) for f in run_record_files(root, _run_spec(config, spec))
+                 if f.parent != folder for r in read_records(f)}
+    sink = RecordSink(folder, _run_spec(config, spec), recorded_elsewhere=elsewhere)
     videos = folder / "videos"
 
     def after(episode: EpisodeData, progress: Progress) -> None:
@@ -133,6 +138,11 @@ def run_shard(
 
     RolloutRunner(spec, sink, on_episode=after).run()
     return sink.path
+
+
+def _run_spec(config: EvalConfig, spec: RolloutSpec) -> dict:
+    """What a shard folder's run.json holds: the rollout spec and the per-object count."""
+    return {**spec.as_dict(), "episodes_per_object": config.episodes_per_object}
 
 
 def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int]) -> Path:

@@ -51,6 +51,7 @@ class EpisodeData:
     task: str
     skills: tuple[str, ...]
     extra: dict = field(default_factory=dict)
+    signals: dict[str, np.ndarray] = field(default_factory=dict)  # (T,) env info traces a run asked to keep
 
     @property
     def num_frames(self) -> int:

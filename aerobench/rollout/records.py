@@ -34,8 +34,9 @@ def read_records(path: str | Path) -> list[dict]:
 class RecordSink:
     """Episode records of one run in `root/records.jsonl`; `spec` (JSON-able) must match the folder's run."""
 
-    def __init__(self, root: str | Path, spec: Mapping):
+    def __init__(self, root: str | Path, spec: Mapping, recorded_elsewhere: set[int] | frozenset[int] = frozenset()):
         self.root = Path(root)
+        self.recorded_elsewhere = set(recorded_elsewhere)  # this run's episodes already in another shard's file
         self.path = self.root / RECORDS_FILE
         spec = json.loads(json.dumps(dict(spec)))
         run_file = self.root / RUN_FILE
@@ -66,7 +67,7 @@ class RecordSink:
             tmp.replace(self.path)
 
     def done_indices(self) -> set[int]:
-        return {int(r["episode_index"]) for r in self.rows}
+        return {int(r["episode_index"]) for r in self.rows} | self.recorded_elsewhere
 
     def write(self, episode: EpisodeData) -> None:
         row = episode.record.to_dict()
@@ -85,3 +86,33 @@ class RecordSink:
 
     def close(self) -> None:
         pass
+
+
+def run_record_files(root: str | Path, spec: Mapping) -> list[Path]:
+    """Every record file of one sharded run under `root` (its own folder and `shards/*/`, whatever the worker count
+    or shard layout it was started with); a folder there holding a different run is refused, not mixed in. `spec`
+    is the run's spec without its `shard`."""
+    root = Path(root)
+    wanted = json.loads(json.dumps({k: v for k, v in dict(spec).items() if k != "shard"}))
+    files = []
+    for run_file in [root / RUN_FILE, *sorted(root.glob(f"shards/*/{RUN_FILE}"))]:
+        if not run_file.is_file():
+            continue
+        held = {k: v for k, v in json.loads(run_file.read_text()).items() if k != "shard"}
+        if held != wanted:
+            diff = sorted(k for k in set(held) | set(wanted) if held.get(k) != wanted.get(k))
+            raise ValueError(f"{run_file.parent} holds a different run (differs in {', '.join(diff)}); "
+                             f"use another --out or delete the folder")
+        if (run_file.parent / RECORDS_FILE).is_file():
+            files.append(run_file.parent / RECORDS_FILE)
+    return files
+
+
+def unique_records(files: list[Path]) -> list[dict]:
+    """The records of `files` by episode index, each episode once (a resumed run whose shard layout changed may hold
+    an episode in two shard files; the first recorded is kept)."""
+    rows: dict[int, dict] = {}
+    for f in files:
+        for r in read_records(f):
+            rows.setdefault(int(r["episode_index"]), r)
+    return [rows[i] for i in sorted(rows)]

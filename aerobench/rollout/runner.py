@@ -49,6 +49,7 @@ class RolloutSpec:
     max_steps: int | None = None  # override the env's episode length
     chained: bool = False  # a chain under the spec's chained evaluation protocol (`rollout.chained`)
     third_person_episodes: int = 0  # episodes with a plan index below this also record the third-person view (videos)
+    keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -328,5 +329,6 @@ class RolloutRunner:
             "chain": plan.skill if spec.is_chain else None,
             "init_failed": init_failed,
         }
-        return EpisodeData(record=record, frames=data, task=task, skills=tuple(evaluators), extra=extra)
+        kept = {k: trace[k] for k in spec.keep_signals if k in trace}
+        return EpisodeData(record=record, frames=data, task=task, skills=tuple(evaluators), extra=extra, signals=kept)
 

@@ -82,6 +82,31 @@ def test_resume_after_a_torn_write_loses_and_duplicates_nothing(tiny_eval, tmp_p
     assert again["cells"] == results["cells"]
 
 
+def test_resume_under_another_shard_layout_runs_and_counts_each_episode_once(tiny_eval, tmp_path):
+    """A run begun with interleaved shards (even / odd indices; an older layout) and resumed with contiguous blocks,
+    then with four workers: no episode runs twice and the results count each once."""
+    out, serial = tiny_eval
+    rows = {json.loads(r)["episode_index"]: r for r in (out / "records.jsonl").read_text().splitlines()}
+    run = json.loads((out / "run.json").read_text())
+    resumed = tmp_path / "resumed"
+    for i, done in ((0, (0, 2, 4, 6)), (1, (1, 3))):  # the process of shard 1 died after two episodes
+        folder = resumed / "shards" / f"{i}-of-2"
+        folder.mkdir(parents=True)
+        (folder / "run.json").write_text(json.dumps({**run, "shard": [i, 2]}))
+        (folder / "records.jsonl").write_text("".join(rows[k] + "\n" for k in done))
+    again = evaluate(EvalConfig(**TINY, workers=2), resumed, command="test")
+    recorded = [r["episode_index"] for f in sorted(resumed.glob("shards/*/records.jsonl")) for r in read_records(f)]
+    assert sorted(recorded) == list(range(8))  # only 5 and 7 ran
+    assert again["cells"] == serial["cells"]
+    evaluate(EvalConfig(**TINY, workers=4), resumed, command="test")  # another worker count: nothing to run
+    assert sorted(r["episode_index"] for f in resumed.glob("shards/*/records.jsonl") for r in read_records(f)) == list(range(8))
+    other = resumed / "shards" / "9-of-9"
+    other.mkdir()
+    (other / "run.json").write_text(json.dumps({**run, "seed": 7, "shard": [8, 9]}))
+    with pytest.raises(ValueError, match="holds a different run"):
+        evaluate(EvalConfig(**TINY, workers=2), resumed, command="test")
+
+
 def test_a_folder_holding_another_run_is_refused(tiny_eval):
     out, _ = tiny_eval
     with pytest.raises(ValueError, match="holds a different run"):

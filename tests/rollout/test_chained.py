@@ -102,3 +102,6 @@ def test_expert_chain_hands_over_to_the_shared_transport_and_back(tmp_path):
     assert stages[1]["skill"] == "nav" and stages[1]["reached"] == 1  # ... and the shared expert transports it
     for segment in record["segments"]:
         assert segment["end"] - segment["start"] <= STAGE_MAX_STEPS[segment["skill"]]
+    # the record's length is the whole rollout's (its segments tile it), its outcome the final stage's
+    assert record["steps"] == record["segments"][-1]["end"] == sum(s["end"] - s["start"] for s in record["segments"])
+    assert record["duration_s"] == record["steps"] / 20

@@ -377,6 +377,11 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             "altitude": ctx.state.position[:, 2] - self.workspace_lo[:, 2],
             "speed": ctx.speed,
             "angular_speed": ctx.angular_speed,
+            # roll-pitch angular speed and the vertical velocity-error integral (spec appendix "Payload-Aware Flight
+            # Control" logs both during the carry)
+            "tilt_rate": torch.linalg.norm(ctx.state.angular_velocity_body[:, :2], dim=-1),
+            "integral_z": self.agent.body_controller.memory.xi[:, 2].clone(),
+            "tcp_height": ctx.tcp[:, 2],
             "nontarget_contact_force": ctx.nontarget_force,
             "airframe_contact_force": ctx.airframe_force,
             "gripper_opening": ctx.gripper_opening,
