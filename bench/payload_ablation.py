@@ -107,6 +107,11 @@ def run_shard(condition: str, shard: int, shards: int, episodes: int, seed: int,
         shard=(shard, shards), policy="expert", record_cameras=False, controller=condition, chained=True,
         keep_signals=SIGNALS,
     )
+    run_file = path.parent / "run.json"  # the folder's run: resuming under other settings (e.g. solver) is refused
+    run = {k: v for k, v in spec.as_dict().items() if k != "shard"}
+    if run_file.exists() and json.loads(run_file.read_text()) != run:
+        raise SystemExit(f"{path.parent} holds a different run ({run_file}); use another --out")
+    run_file.write_text(json.dumps(run, indent=1) + "\n")
     RolloutRunner(spec, sink, on_episode=lambda ep, p: print(
         f"{condition:14s} {ep.record.object:18s} seed {ep.record.seed}: {ep.record.outcome} {ep.record.mode}", flush=True,
     )).run()
@@ -423,7 +428,9 @@ def main(argv: list[str] | None = None) -> None:
     out = Path(args.out)
     results = run_all(instances, args.seed, out, args.workers, args.shards)
     summary = analyse(results)
-    summary["protocol"].update(seed=args.seed, command="python bench/payload_ablation.py " +
+    from aerobench.envs.base_env import default_physx_solver
+
+    summary["protocol"].update(seed=args.seed, physx_solver=default_physx_solver(), command="python bench/payload_ablation.py " +
                                (" ".join(argv) if argv is not None else " ".join(sys.argv[1:])))
     report(summary)
     (out / "payload_ablation.json").write_text(json.dumps(summary, indent=1) + "\n")

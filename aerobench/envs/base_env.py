@@ -8,17 +8,37 @@ hand-off of payload signals to the flight controller. Tasks fill the usual ManiS
 from __future__ import annotations
 
 import gc
+import os
 
 import sapien
 import torch
 from mani_skill.envs.sapien_env import BaseEnv
-from mani_skill.utils.structs.types import SimConfig
+from mani_skill.utils.structs.types import SceneConfig, SimConfig
 
 from .agents import AGENT_UIDS, AerialAgent
 from .control.payload import ControllerMode
 from .platforms import CONTROL_HZ, PHYSICS_HZ, get_platform
 
 _heap_frozen = False
+
+# PhysX's contact solver. ManiSkill's default, TGS, lets a pinched object creep out of the jaws below the friction
+# limit, the faster the more position iterations: the potted meat can slides 0.13 mm per control step at 15 iterations,
+# 0.64 at 50 and none at 4, and the 16 mm bowl rim drops at once; PGS holds both, and the flight figures move by less
+# than 0.1 mm (docs/physics.md). `physx_solver="tgs"` (or AEROBENCH_PHYSX_SOLVER=tgs) reproduces rows measured before.
+PHYSX_SOLVERS = ("pgs", "tgs")
+DEFAULT_PHYSX_SOLVER = "pgs"
+
+
+def default_physx_solver() -> str:
+    """The solver an env uses when none is named: AEROBENCH_PHYSX_SOLVER, else PGS."""
+    return check_physx_solver(os.environ.get("AEROBENCH_PHYSX_SOLVER", DEFAULT_PHYSX_SOLVER))
+
+
+def check_physx_solver(solver: str) -> str:
+    solver = str(solver).strip().lower()
+    if solver not in PHYSX_SOLVERS:
+        raise ValueError(f"physx solver {solver!r}; use one of {', '.join(PHYSX_SOLVERS)} (AEROBENCH_PHYSX_SOLVER)")
+    return solver
 
 
 def freeze_process_heap() -> None:
@@ -47,8 +67,10 @@ class AerialEnv(BaseEnv):
     SUPPORTED_ROBOTS = list(AGENT_UIDS.values())
     agent: AerialAgent
 
-    def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware", **kwargs):
+    def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware",
+                 physx_solver: str | None = None, **kwargs):
         self.platform = get_platform(platform)
+        self.physx_solver = check_physx_solver(physx_solver) if physx_solver else default_physx_solver()
         self.controller_mode = ControllerMode.parse(controller)
         if "control_mode" in kwargs and kwargs["control_mode"] is not None:
             raise ValueError("aerobench envs choose their controller with controller='payload-aware'|'nominal'")
@@ -58,7 +80,8 @@ class AerialEnv(BaseEnv):
 
     @property
     def _default_sim_config(self) -> SimConfig:
-        return SimConfig(sim_freq=PHYSICS_HZ, control_freq=CONTROL_HZ, spacing=20.0)
+        return SimConfig(sim_freq=PHYSICS_HZ, control_freq=CONTROL_HZ, spacing=20.0,
+                         scene_config=SceneConfig(enable_tgs=self.physx_solver == "tgs"))
 
     def _load_agent(self, options: dict, initial_agent_poses=None, build_separate: bool = False):
         super()._load_agent(options, sapien.Pose(), build_separate)

@@ -105,7 +105,8 @@ def evaluate(
         "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(spec.skills),
         "chain": list(config.chain) if config.chain else None,
         "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
-        "sim_backend": config.sim_backend, "num_envs": config.num_envs, "max_steps": config.max_steps,
+        "sim_backend": config.sim_backend, "physx_solver": spec.physx_solver, "num_envs": config.num_envs,
+        "max_steps": config.max_steps,
         "records": ",".join(str(f.relative_to(out)) for f in record_files),
         "command": command, "seen_in_training": held_out,
     }

@@ -10,7 +10,7 @@ from __future__ import annotations
 import torch
 
 from ..envs.control.virtual_joints import AirframeState
-from ..envs.platforms import MAX_YAW_RATE_RPS
+from ..envs.platforms import CONTROL_HZ, MAX_YAW_RATE_RPS
 from .motion import POSITION_GAIN, YAW_GAIN, flight_action, velocity_towards, wrap_angle, yaw_rate_towards
 
 ARM_YAW_GAIN = 0.6  # 1/s
@@ -34,6 +34,7 @@ class SkillExpert:
         # The arm platform's yaw torque is limited to 0.12 N m, so its heading lags the commanded yaw rate: a gentler
         # heading loop keeps it from ringing (the gripper platform turns fast enough for the default).
         self.yaw_gain, self.max_yaw_rate = (ARM_YAW_GAIN, ARM_MAX_YAW_RATE) if self.has_arm else (YAW_GAIN, MAX_YAW_RATE_RPS)
+        self.velocity_command = torch.zeros(self.n, 3, device=self.device)  # the last commanded velocity (m/s)
 
     def reset(self, env_idx: torch.Tensor) -> None:
         self.phase[env_idx] = 0
@@ -74,10 +75,12 @@ class SkillExpert:
         yaw_rate_feedforward: torch.Tensor | None = None,
         yaw_gain: torch.Tensor | None = None,
         velocity_override: tuple[torch.Tensor, torch.Tensor] | None = None,
+        max_accel: float | None = None,
     ) -> torch.Tensor:
         """Track `tcp_target` `(N, 3)` under `max_speed` `(N,)` with position `gain` (1/s, scalar or `(N,)`), turn to
         `yaw_target`, set the gripper (-1 closed) and the arm joint targets (default: the rest pose).
-        `tracked` `(N, 3)` replaces the tool centre point as the point driven to the target (e.g. the airframe)."""
+        `tracked` `(N, 3)` replaces the tool centre point as the point driven to the target (e.g. the airframe).
+        `max_accel` (m/s^2) bounds how fast the velocity command may change from the last one (a ramp, not a step)."""
         state = self.state()
         gain = torch.as_tensor(gain, dtype=torch.float32, device=self.device)
         point = self.tcp() if tracked is None else tracked
@@ -85,6 +88,11 @@ class SkillExpert:
         if velocity_override is not None:  # (mask (N,), velocity (N, 3)): commanded directly where masked
             mask, direct = velocity_override
             velocity = torch.where(mask[:, None], direct, velocity)
+        if max_accel is not None:
+            change = velocity - self.velocity_command
+            norm = torch.linalg.norm(change, dim=-1, keepdim=True)
+            velocity = self.velocity_command + change * torch.clamp((max_accel / CONTROL_HZ) / (norm + 1e-9), max=1.0)
+        self.velocity_command = velocity
         if yaw_gain is None:
             yaw_rate = yaw_rate_towards(state.yaw, yaw_target, self.max_yaw_rate, self.yaw_gain)
         else:  # per-env gains (e.g. stiffer while a door holds the heading)

@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from ..annotation import EpisodeRecord, categorize, cut_segments
+from ..envs.base_env import check_physx_solver, default_physx_solver
 from ..envs.checker import SKILL_ENV_IDS
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
@@ -49,6 +50,7 @@ class RolloutSpec:
     max_steps: int | None = None  # override the env's episode length
     chained: bool = False  # a chain under the spec's chained evaluation protocol (`rollout.chained`)
     third_person_episodes: int = 0  # episodes with a plan index below this also record the third-person view (videos)
+    physx_solver: str = field(default_factory=default_physx_solver)  # "pgs" (default) or "tgs" (rows before 2026-11-25)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
 
     def __post_init__(self):
@@ -72,6 +74,7 @@ class RolloutSpec:
         if not (isinstance(self.seed, int) and 0 <= self.seed <= last_seed):
             raise ValueError(f"--seed must be between 0 and {last_seed} (episode i runs with seed * {SEED_STRIDE} + i, "
                              f"which must fit in 32 bits), got {self.seed}")
+        object.__setattr__(self, "physx_solver", check_physx_solver(self.physx_solver))
         i, k = self.shard
         if not (k >= 1 and 0 <= i < k):
             raise ValueError(f"--shard must be i/k with 0 <= i < k, got {i}/{k}")
@@ -94,6 +97,8 @@ class RolloutSpec:
             "controller": self.controller, "shard": list(self.shard),
             **({"max_steps": self.max_steps} if self.max_steps else {}),  # only when set: older runs stay resumable
             **({"chained": True} if self.chained else {}),
+            # named when it is not TGS, the solver of every run before the key existed: those stay resumable (as TGS)
+            **({"physx_solver": self.physx_solver} if self.physx_solver != "tgs" else {}),
         }
 
 
@@ -168,6 +173,7 @@ class RolloutRunner:
             kwargs = dict(
                 setting=spec.setting, obs_mode="rgbd" if spec.record_cameras else "state_dict",
                 num_envs=spec.num_envs, sim_backend=spec.sim_backend, controller=spec.controller,
+                physx_solver=spec.physx_solver,
             )
             if spec.platform:
                 kwargs["platform"] = spec.platform
