@@ -100,14 +100,19 @@ def render_markdown(table: SettingTable) -> str:
                 mean = f"**{mean}**" if table.is_best_mean(result) else mean
             lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
     lines += _chain_markdown(table)
-    lines += ["", "| Row | n per cell | Starts seen in training | Training runs (Mean S.R. each) | Results file | Command |",
-              "|---|---|---|---|---|---|"]
+    lines += ["", "| Row | n per cell | Starts seen in training | Training runs (Mean S.R. each) | Contact solver | "
+              "Results file | Command |", "|---|---|---|---|---|---|---|"]
     for result in table.results:
         ns = sorted({c["n"] for c in result["cells"]})
         command = result["provenance"].get("command") or "-"
         lines.append(f"| {result['label']} | {', '.join(map(str, ns))} | {seen_in_training_text(result)} | "
-                     f"{training_runs_text(result)} | `{result['_source']}` | `{command}` |")
+                     f"{training_runs_text(result)} | {solver_text(result)} | `{result['_source']}` | `{command}` |")
     return "\n".join(lines) + "\n"
+
+
+def solver_text(result: dict) -> str:
+    """The PhysX solver the row was measured with; results from before the key were measured under TGS."""
+    return str(result["provenance"].get("physx_solver", "tgs")).upper()
 
 
 def seen_in_training_text(result: dict) -> str:

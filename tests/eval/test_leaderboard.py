@@ -201,3 +201,5 @@ def test_the_row_table_says_whether_a_learned_policy_saw_the_evaluation_starts(t
     assert "Starts seen in training" in rows[0]
     column = {r.split("|")[1].strip(): r.split("|")[3].strip() for r in rows[2:] if r.startswith("| ")}
     assert column == {"ACT": "**3 of 4**", "DP": "none (held out)", "PI0": "not traced", "PI05": "-"}
+    # the contact solver: results without the key were measured under TGS
+    assert "Contact solver" in rows[0] and all(r.split("|")[5].strip() == "TGS" for r in rows[2:] if r.startswith("| "))
