@@ -251,6 +251,8 @@ def _add_generate(sub) -> None:
     p.add_argument("--controller", default="payload-aware", help="payload-aware or nominal")
     p.add_argument("--no-cameras", action="store_true", help="state-only episodes (much faster; no image features)")
     p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
+    p.add_argument("--render", default="rasterized", choices=("rasterized", "ray-traced"),
+                   help="how the cameras render: SAPIEN's rasterizer, or its ray tracer (needs a ray-tracing GPU)")
     p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
     p.add_argument("--out", required=True, help="dataset folder (LeRobotDataset root)")
     _add_ray_options(p, "shards")
@@ -277,7 +279,12 @@ def _run_generate(args) -> int:
             setting=args.setting, skills=args.skills, episodes=args.episodes, objects=args.objects,
             num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, platform=args.platform,
             controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
+            rendering=args.render,
         )
+        if spec.rendering == "ray-traced" and args.ray is None:
+            from .envs.rendering import require_ray_tracing
+
+            require_ray_tracing()  # this machine renders the episodes: say now if it cannot
         from .envs.control.payload import ControllerMode
         from .policies.registry import POLICIES, make_policy  # noqa: F401
 

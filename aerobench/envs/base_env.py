@@ -18,12 +18,13 @@ from mani_skill.utils.structs.types import SceneConfig, SimConfig
 from .agents import AGENT_UIDS, AerialAgent
 from .control.payload import ControllerMode
 from .platforms import CONTROL_HZ, PHYSICS_HZ, get_platform
+from .rendering import DEFAULT_RENDERING, check_rendering, ray_traced_camera_overrides
 
 _heap_frozen = False
 
 # PhysX's contact solver. ManiSkill's default, TGS, lets a pinched object creep out of the jaws below the friction
 # limit, the faster the more position iterations: the potted meat can slides 0.13 mm per control step at 15 iterations,
-# 0.64 at 50 and none at 4, and the 16 mm bowl rim drops at once; PGS holds both, and the flight figures move by less
+# 0.18 at 50 and none at 4, and the 16 mm bowl rim drops at once; PGS holds both, and the flight figures move by less
 # than 0.1 mm (docs/physics.md). `physx_solver="tgs"` (or AEROBENCH_PHYSX_SOLVER=tgs) reproduces rows measured before.
 PHYSX_SOLVERS = ("pgs", "tgs")
 DEFAULT_PHYSX_SOLVER = "pgs"
@@ -62,15 +63,20 @@ def freeze_process_heap() -> None:
 
 
 class AerialEnv(BaseEnv):
-    """Base of aerobench envs. Args (besides ManiSkill's): `platform`, `controller`."""
+    """Base of aerobench envs. Args (besides ManiSkill's): `platform`, `controller`, `physx_solver`, `rendering`
+    ("rasterized" or "ray-traced": every camera through SAPIEN's ray tracer; needs a ray-tracing GPU)."""
 
     SUPPORTED_ROBOTS = list(AGENT_UIDS.values())
     agent: AerialAgent
 
     def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware",
-                 physx_solver: str | None = None, **kwargs):
+                 physx_solver: str | None = None, rendering: str = DEFAULT_RENDERING, **kwargs):
         self.platform = get_platform(platform)
         self.physx_solver = check_physx_solver(physx_solver) if physx_solver else default_physx_solver()
+        self.rendering = check_rendering(rendering)
+        if self.rendering != "rasterized":
+            kwargs["sensor_configs"], kwargs["human_render_camera_configs"] = ray_traced_camera_overrides(
+                kwargs.get("sensor_configs"), kwargs.get("human_render_camera_configs"))
         self.controller_mode = ControllerMode.parse(controller)
         if "control_mode" in kwargs and kwargs["control_mode"] is not None:
             raise ValueError("aerobench envs choose their controller with controller='payload-aware'|'nominal'")

@@ -21,6 +21,7 @@ import torch
 from ..annotation import EpisodeRecord, categorize, cut_segments
 from ..envs.base_env import check_physx_solver, default_physx_solver
 from ..envs.checker import SKILL_ENV_IDS
+from ..envs.rendering import DEFAULT_RENDERING, check_rendering
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
 from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, mark_grasp_lost, split_checkpoints
@@ -51,6 +52,7 @@ class RolloutSpec:
     chained: bool = False  # a chain under the spec's chained evaluation protocol (`rollout.chained`)
     third_person_episodes: int = 0  # episodes with a plan index below this also record the third-person view (videos)
     physx_solver: str = field(default_factory=default_physx_solver)  # "pgs" (default) or "tgs" (rows before 2026-11-25)
+    rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
 
     def __post_init__(self):
@@ -75,6 +77,9 @@ class RolloutSpec:
             raise ValueError(f"--seed must be between 0 and {last_seed} (episode i runs with seed * {SEED_STRIDE} + i, "
                              f"which must fit in 32 bits), got {self.seed}")
         object.__setattr__(self, "physx_solver", check_physx_solver(self.physx_solver))
+        object.__setattr__(self, "rendering", check_rendering(self.rendering))
+        if self.rendering != DEFAULT_RENDERING and not self.record_cameras:
+            raise ValueError(f"{self.rendering} rendering is for the cameras; drop --no-cameras or the --render option")
         i, k = self.shard
         if not (k >= 1 and 0 <= i < k):
             raise ValueError(f"--shard must be i/k with 0 <= i < k, got {i}/{k}")
@@ -99,6 +104,7 @@ class RolloutSpec:
             **({"chained": True} if self.chained else {}),
             # named when it is not TGS, the solver of every run before the key existed: those stay resumable (as TGS)
             **({"physx_solver": self.physx_solver} if self.physx_solver != "tgs" else {}),
+            **({"rendering": self.rendering} if self.rendering != DEFAULT_RENDERING else {}),
         }
 
 
@@ -173,7 +179,7 @@ class RolloutRunner:
             kwargs = dict(
                 setting=spec.setting, obs_mode="rgbd" if spec.record_cameras else "state_dict",
                 num_envs=spec.num_envs, sim_backend=spec.sim_backend, controller=spec.controller,
-                physx_solver=spec.physx_solver,
+                physx_solver=spec.physx_solver, rendering=spec.rendering,
             )
             if spec.platform:
                 kwargs["platform"] = spec.platform

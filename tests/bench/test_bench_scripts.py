@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aerobench.envs.rendering import ray_tracing_device
+
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 sys.path.insert(0, str(BENCH))
 
@@ -178,3 +180,13 @@ def test_scale_prints_the_rate_of_one_and_two_ray_workers(tmp_path):
     # The rows are printed to 0.1 ep/min and the ratio from the unrounded rates: bound it by the rows' rounding.
     (one, two), half = (rows[1][0], rows[2][0]), 0.05
     assert (two - half) / (one + half) - 0.005 <= ratio <= (two + half) / max(one - half, 1e-9) + 0.005
+
+
+@pytest.mark.skipif(ray_tracing_device() is not None, reason="this machine has a ray-tracing GPU (the row is measured)")
+def test_ray_tracing_bench_measures_rasterized_and_says_why_not_ray_traced(tmp_path):
+    r = subprocess.run([sys.executable, str(BENCH / "ray_tracing.py"), "--steps", "1"], capture_output=True, text=True,
+                       timeout=600, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = dict(line.split(None, 1) for line in r.stdout.splitlines() if line.strip())
+    assert float(rows["rasterized"].split()[0]) > 0
+    assert rows["ray-traced"].startswith("not measured: ray-traced rendering needs a GPU with Vulkan ray tracing")
