@@ -49,24 +49,24 @@ def parse_device_summary(summary: str) -> list[VulkanDevice]:
     return [VulkanDevice(d["name"], d.get("rayTrace", 0) == 1, d.get("cudaId", -1)) for d in devices]
 
 
+def device_summary() -> str:
+    import sapien
+
+    return sapien.render.get_device_summary()
+
+
 def ray_tracing_device(summary: str | None = None) -> VulkanDevice | None:
     """The first hardware Vulkan device that ray-traces, or None."""
-    if summary is None:
-        import sapien
-
-        summary = sapien.render.get_device_summary()
+    summary = device_summary() if summary is None else summary
     usable = [d for d in parse_device_summary(summary) if d.ray_tracing and not d.is_software]
     return usable[0] if usable else None
 
 
 def require_ray_tracing(summary: str | None = None) -> VulkanDevice:
     """The ray-tracing device, or a one-line error that says what this machine has and what to do."""
+    summary = device_summary() if summary is None else summary
     device = ray_tracing_device(summary)
     if device is None:
-        if summary is None:
-            import sapien
-
-            summary = sapien.render.get_device_summary()
         found = ", ".join(d.name for d in parse_device_summary(summary)) or "no Vulkan device"
         raise ValueError(f"ray-traced rendering needs a GPU with Vulkan ray tracing (an NVIDIA RTX-class card); this "
                          f"machine has {found}, which cannot (software Vulkan renders black); use rasterized rendering")
