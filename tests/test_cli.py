@@ -1,4 +1,4 @@
-"""`aerobench fly` from the shell: one-line errors, JSON output, video and plot files."""
+"""`aerobench` from the shell: every command's help, `fly`'s one-line errors, JSON output, video and plot files."""
 
 import json
 import os
@@ -13,6 +13,34 @@ CLI = [sys.executable, "-m", "aerobench.cli"]
 def _run(*args, timeout=300):
     env = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
     return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def _commands(parser) -> dict:
+    """Every (sub)command path of the parser, e.g. ('dataset', 'info'), with its parser."""
+    import argparse
+
+    found = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                found[(name,)] = sub
+                found.update({(name, *k): v for k, v in _commands(sub).items()})
+    return found
+
+
+def test_every_command_has_a_help_page(capsys):
+    """`--help` formats every command's options (a literal % in a help text once broke `aerobench --help`)."""
+    from aerobench.cli import build_parser
+
+    parser = build_parser()
+    commands = _commands(parser)
+    assert {("fly",), ("demo",), ("render",), ("generate",), ("dataset", "info"), ("eval",), ("summarize",),
+            ("compare",), ("leaderboard",), ("train", "bc"), ("train", "ppo"), ("pi-init",)} <= set(commands)
+    for path in [(), *commands]:
+        with pytest.raises(SystemExit) as stop:
+            parser.parse_args([*path, "--help"])
+        assert stop.value.code == 0, path
+        assert "usage: aerobench" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,155 @@
+"""`aerobench eval`, `summarize`, `compare` and `leaderboard`: scoring policies and presenting the scores."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from pathlib import Path
+
+from ..progress import progress_bar, ray_progress_bar
+from .common import UserError, add_ray_options, parse_csv
+
+
+def add_eval(sub) -> None:
+    p = sub.add_parser("eval", help="evaluate a policy per skill x object; writes records.jsonl and results.json")
+    p.add_argument("--policy", required=True, help="a registered policy: expert, random, bc, ppo, act, diffusion, pi0, pi05")
+    p.add_argument("--checkpoint", default=None,
+                   help="checkpoint folder of a trained policy, or one per skill: pick=DIR,place=DIR")
+    p.add_argument("--setting", required=True, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
+    p.add_argument("--skills", type=parse_csv, default=("pick", "place"), help="comma-separated skills, or one chain")
+    p.add_argument("--chain", type=parse_csv, default=None,
+                   help="chained protocol, e.g. pick,transport,place: the policy acts the skills, the expert transports "
+                        "(--checkpoint DIR, or pick=DIR,place=DIR per stage)")
+    p.add_argument("--objects", type=parse_csv, default=None, help="comma-separated objects (default: all of the setting's)")
+    p.add_argument("--episodes-per-object", type=int, default=50)
+    p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the episode plan; for a learned policy, one its "
+                   "training data was not generated with (held-out starts; results record any overlap)")
+    p.add_argument("--video", type=int, default=0, help="write rollout videos of the first N episodes (renders cameras)")
+    p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
+    p.add_argument("--label", default=None, help="leaderboard row name (default: the policy name)")
+    p.add_argument("--dataset-revision", default=None, help="the training dataset's revision, kept in the provenance")
+    p.add_argument("--max-steps", type=int, default=None,
+                   help="truncate episodes after N control steps (smoke tests; not comparable with full-length results)")
+    p.add_argument("--workers", type=int, default=1, help="physx_cpu: run the episodes in this many worker processes "
+                   "(shards; e.g. the number of cores)")
+    p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
+    add_ray_options(p)
+    p.set_defaults(func=_run_eval)
+
+
+def _run_eval(args) -> int:
+    from ..eval.evaluate import EvalConfig, evaluate, format_table
+
+    try:
+        config = EvalConfig(
+            policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
+            episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
+            seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
+            dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
+            ray=args.ray,
+        )
+        if args.max_steps is not None and args.max_steps < 1:
+            raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
+        config.needs_images()  # unknown names and bad checkpoints fail before any work
+        spec = config.rollout_spec(record_cameras=False)
+        if args.ray is not None:
+            from ..rollout.ray_shards import connect
+
+            connect(args.ray)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    bar = progress_bar(spec)
+    ray_update, ray_close = ray_progress_bar(spec) if args.ray is not None else (None, lambda: None)
+    try:
+        results = evaluate(config, args.out, on_episode=lambda ep, progress: bar(progress),
+                           command="aerobench " + shlex.join(sys.argv[1:]), on_progress=ray_update)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    finally:
+        ray_close()
+    print(format_table(results))
+    print(f"wrote {Path(args.out) / 'results.json'}")
+    return 0
+
+
+def add_summarize(sub) -> None:
+    p = sub.add_parser("summarize", help="a results.json from episode records (of aerobench eval or generate)")
+    p.add_argument("records", help="a records.jsonl, or a folder holding one (an eval folder, or a dataset's .aerobench/)")
+    p.add_argument("--label", default=None, help="leaderboard row name (default: the policy name)")
+    p.add_argument("--out", required=True, help="results file to write")
+    p.set_defaults(func=_run_summarize)
+
+
+def _run_summarize(args) -> int:
+    from ..eval.evaluate import format_table
+    from ..eval.results import summarize, write_results
+    from ..export.card import generate_command
+    from ..rollout.records import RECORDS_FILE, read_records
+
+    path = Path(args.records)
+    for candidate in (path, path / RECORDS_FILE, path / ".aerobench" / RECORDS_FILE):
+        if candidate.is_file():
+            path = candidate
+            break
+    else:
+        raise UserError(f"no records.jsonl at {args.records} (aerobench eval and generate write one)")
+    run_files = [path.parent / "run.json", path.parent / "generation.json"]
+    source = next((json.loads(f.read_text()) for f in run_files if f.is_file()), {})
+    command = "aerobench " + shlex.join(sys.argv[1:])
+    if (path.parent / "generation.json").is_file() and path.parent.name == ".aerobench":
+        # Records of a generated dataset: the table's provenance is the generate command, then this one.
+        command = f"{generate_command(source, path.parent.parent)} && {command}"
+    try:
+        results = summarize(read_records(path), {**source, "records": str(path), "command": command}, label=args.label)
+    except (ValueError, KeyError) as e:
+        raise UserError(f"cannot summarize {path}: {e}") from None
+    write_results(args.out, results)
+    print(format_table(results))
+    print(f"wrote {args.out}")
+    return 0
+
+
+def add_compare(sub) -> None:
+    p = sub.add_parser("compare", help="two evals on the same starts, episode by episode: paired table, exact McNemar "
+                       "p-value, 95%% interval for the difference, verdict")
+    p.add_argument("a", help="eval folder or results file of policy A")
+    p.add_argument("b", help="eval folder or results file of policy B (same setting, skills, objects and --seed)")
+    p.add_argument("--difference", type=float, default=0.10,
+                   help="success-rate difference the power statement is about (default: 0.10, ten points)")
+    p.add_argument("--json", default=None, help="also write the comparison to this JSON file")
+    p.set_defaults(func=_run_compare)
+
+
+def _run_compare(args) -> int:
+    from ..eval.compare import compare, format_comparison
+
+    try:
+        result = compare(args.a, args.b, difference=args.difference)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(format_comparison(result))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
+    return 0
+
+
+def add_leaderboard(sub) -> None:
+    p = sub.add_parser("leaderboard", help="render Markdown, LaTeX and HTML leaderboards from results files")
+    p.add_argument("results", nargs="+", help="results.json files written by aerobench eval")
+    p.add_argument("--out", default="leaderboards", help="output folder")
+    p.set_defaults(func=_run_leaderboard)
+
+
+def _run_leaderboard(args) -> int:
+    from ..eval.leaderboard import build_leaderboard
+
+    try:
+        written = build_leaderboard(args.results, args.out)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print("wrote " + ", ".join(str(p) for p in written.values()))
+    print(f"HTML leaderboard: {Path(args.out) / 'index.html'}")
+    return 0
+
