@@ -66,6 +66,7 @@ class Budget:
     bc_seeds: tuple[int, ...] = (0,)
     workers: int = 1  # collection and evaluation processes
     max_steps: int | None = None  # truncate held-out and PPO training episodes (smoke tests; collection runs in full)
+    transition_budget: int | None = None  # one more BC point: the leading demos of all rounds within this many frames
 
     def __post_init__(self):
         if self.skill not in SKILLS:
@@ -74,6 +75,8 @@ class Budget:
             raise ValueError("--bc-seeds needs at least one seed, --workers at least 1, --ppo-steps at least 0")
         if not self.rounds or any(r < 1 for r in self.rounds) or list(self.rounds) != sorted(set(self.rounds)):
             raise ValueError(f"--rounds must be increasing positive integers like 1,2,4,8; got {self.rounds}")
+        if self.transition_budget is not None and self.transition_budget < 1:
+            raise ValueError(f"--transition-budget must be a positive integer, got {self.transition_budget}")
         for name in ("rollouts_per_round", "bc_steps", "eval_per_object", "window"):
             if getattr(self, name) < 1:
                 raise ValueError(f"--{name.replace('_', '-')} must be at least 1, got {getattr(self, name)}")
@@ -178,15 +181,17 @@ def _mark_done(out: Path, checkpoint: Path, seconds: float) -> None:
     (out / DONE_FILE).write_text(json.dumps({"checkpoint": str(checkpoint), "train_s": seconds}) + "\n")
 
 
-def train_bc_checkpoint(dataset: Path, out: Path, steps: int, seed: int) -> tuple[Path, float]:
-    """A state-only BC checkpoint trained on `dataset` (reused when `out` holds a finished one)."""
+def train_bc_checkpoint(dataset: Path, out: Path, steps: int, seed: int,
+                        max_transitions: int | None = None) -> tuple[Path, float]:
+    """A state-only BC checkpoint trained on `dataset`, or on its leading demos within `max_transitions` frames
+    (reused when `out` holds a finished one)."""
     if (ckpt := _done(out)) is not None:
         return ckpt, json.loads((out / DONE_FILE).read_text())["train_s"]
     from aerobench.train.bc import BCConfig, train_bc
 
     started = time.monotonic()  # an interrupted run resumes from its last checkpoint (the time is this run's)
     ckpt = Path(train_bc(BCConfig(dataset=str(dataset), out=str(out), steps=steps, seed=seed, images=False,
-                                  progress=False)))
+                                  progress=False, max_transitions=max_transitions)))
     elapsed = time.monotonic() - started
     _mark_done(out, ckpt, elapsed)
     return ckpt, elapsed
@@ -277,27 +282,13 @@ def run(budget: Budget, out: Path) -> dict:
         row: dict = {"rounds": n_rounds, "rollouts": n_rounds * budget.rollouts_per_round,
                      "demos": sum(r["successes"] for r in rounds[:n_rounds]),
                      "transitions": sum(r["transitions"] for r in rounds[:n_rounds])}
-        if dataset is None:
-            print(f"BC after {n_rounds} round(s): no successful expert rollout to train on", flush=True)
-            row.update(held_out=None, train_s=None, checkpoint=None, seeds=[])
-            summary["bc"].append(row)
-            continue
-        row["seeds"] = []
-        for seed in budget.bc_seeds:
-            ckpt_dir = out / "bc" / (f"{tag}_rounds{n_rounds}_steps{budget.bc_steps}" + (f"_seed{seed}" if seed else ""))
-            ckpt, train_s = train_bc_checkpoint(dataset, ckpt_dir, budget.bc_steps, seed)
-            h = held_out(budget, "bc", ckpt, out / "eval" / f"{ckpt_dir.name}_{evals}")
-            row["seeds"].append({"seed": seed, "checkpoint": str(ckpt), "train_s": train_s, "held_out": h})
-            print(f"BC after {n_rounds} round(s) ({row['transitions']} transitions, seed {seed}, {budget.bc_steps} "
-                  f"steps in {train_s:.0f} s): held-out {h['successes']}/{h['n']}", flush=True)
-        # the row's marker pools the training seeds' held-out episodes (each seed's own numbers stay in "seeds")
-        k, n = sum(r["held_out"]["successes"] for r in row["seeds"]), sum(r["held_out"]["n"] for r in row["seeds"])
-        from aerobench.eval.stats import wilson_interval
-
-        row.update(checkpoint=row["seeds"][0]["checkpoint"], train_s=row["seeds"][0]["train_s"],
-                   held_out={"success": k / n if n else 0.0, "successes": k, "n": n,
-                             "wilson95": list(wilson_interval(k, n)), "pooled_seeds": list(budget.bc_seeds)})
-        summary["bc"].append(row)
+        summary["bc"].append(bc_row(budget, out, row, dataset, f"{tag}_rounds{n_rounds}"))
+    if budget.transition_budget:
+        # The data budget as its own point: the demos of every round in collection order, up to the budget's frames.
+        n_rounds, cap = max(budget.rounds), budget.transition_budget
+        dataset = cumulative_dataset(round_roots[:n_rounds], out / "data" / tag / f"rounds_1-{n_rounds}")
+        row = {"rounds": n_rounds, "rollouts": n_rounds * budget.rollouts_per_round, "transition_budget": cap}
+        summary["bc"].append(bc_row(budget, out, row, dataset, f"{tag}_rounds{n_rounds}_cap{cap}", cap))
 
     if budget.ppo_steps == 0:
         summary["ppo"] = None
@@ -326,6 +317,34 @@ def run(budget: Budget, out: Path) -> dict:
     return summary
 
 
+def bc_row(budget: Budget, out: Path, row: dict, dataset: Path | None, name: str, cap: int | None = None) -> dict:
+    """BC trained on `dataset` (its leading demos within `cap` frames when given) with every training seed, each
+    evaluated held out; the row pools the seeds' episodes (each seed's own numbers stay in "seeds")."""
+    from aerobench.eval.stats import wilson_interval
+    from aerobench.policies.learned import read_config
+
+    label = f"{row['rounds']} round(s)" + (f" capped at {cap} transitions" if cap else "")
+    if dataset is None:
+        print(f"BC after {label}: no successful expert rollout to train on", flush=True)
+        return {**row, "held_out": None, "train_s": None, "checkpoint": None, "seeds": []}
+    row["seeds"] = []
+    for seed in budget.bc_seeds:
+        ckpt_dir = out / "bc" / (f"{name}_steps{budget.bc_steps}" + (f"_seed{seed}" if seed else ""))
+        ckpt, train_s = train_bc_checkpoint(dataset, ckpt_dir, budget.bc_steps, seed, cap)
+        if cap:  # what the budget admitted, as the trainer counted it
+            data = read_config(ckpt)["data"]
+            row.update(demos=data["episodes"], transitions=data["frames"])
+        h = held_out(budget, "bc", ckpt, out / "eval" / f"{ckpt_dir.name}_e{budget.eval_per_object}")
+        row["seeds"].append({"seed": seed, "checkpoint": str(ckpt), "train_s": train_s, "held_out": h})
+        print(f"BC after {label} ({row['transitions']} transitions, seed {seed}, {budget.bc_steps} "
+              f"steps in {train_s:.0f} s): held-out {h['successes']}/{h['n']}", flush=True)
+    k, n = sum(r["held_out"]["successes"] for r in row["seeds"]), sum(r["held_out"]["n"] for r in row["seeds"])
+    row.update(checkpoint=row["seeds"][0]["checkpoint"], train_s=row["seeds"][0]["train_s"],
+               held_out={"success": k / n if n else 0.0, "successes": k, "n": n,
+                         "wilson95": list(wilson_interval(k, n)), "pooled_seeds": list(budget.bc_seeds)})
+    return row
+
+
 def plot(summary: dict, path: Path) -> None:
     import matplotlib
 
@@ -333,7 +352,7 @@ def plot(summary: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    bc = [r for r in summary["bc"] if r["held_out"] and r["transitions"] > 0]
+    bc = sorted((r for r in summary["bc"] if r["held_out"] and r["transitions"] > 0), key=lambda r: r["transitions"])
     if bc:
         x = np.array([r["transitions"] for r in bc], float)
         y = np.array([r["held_out"]["success"] for r in bc])
@@ -347,7 +366,8 @@ def plot(summary: dict, path: Path) -> None:
                 ys = [s["held_out"]["success"] for s in r["seeds"]]
                 ax.plot([r["transitions"]] * len(ys), ys, "_", color="C0", ms=10, mew=1.5)
         for r, xi, yi in zip(bc, x, y):
-            ax.annotate(f"{r['rounds']}r", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
+            ax.annotate(f"{r['rounds']}r" + (f" cap {r['transition_budget'] / 1000:g}k" if r.get("transition_budget") else ""),
+                        (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
     curve = summary["ppo"]["curve"] if summary["ppo"] else {"global_step": []}
     if curve["global_step"]:
         ax.plot(np.maximum(curve["global_step"], 1), curve["success_moving_average"], color="C1",
@@ -397,6 +417,9 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
     parser.add_argument("--bc-seeds", type=_ints, default=(0,), help="BC training seeds (default 0)")
     parser.add_argument("--workers", type=int, default=1, help="collection and evaluation processes (e.g. the cores)")
     parser.add_argument("--max-steps", type=int, default=None, help="truncate held-out and PPO training episodes (smoke tests)")
+    parser.add_argument("--transition-budget", type=int, default=None,
+                        help="also train BC on the leading demos of all rounds (collection order) within this many "
+                             "transitions, e.g. 81000 for the spec's '67-81k'")
     parser.add_argument("--spec-scale", action="store_true",
                         help="the spec's budget: rounds 1,2,4,8 of 256 rollouts, 20k BC steps, 5M PPO interactions, "
                              "50 held-out episodes per object (explicit flags still win)")
@@ -413,7 +436,8 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
             setting.check_object(obj)
         objects = args.objects or (None if args.spec_scale else SMALL_OBJECTS)
         budget = Budget(setting=args.setting, skill=args.skill, objects=objects, window=args.window, seed=args.seed,
-                        bc_seeds=args.bc_seeds, workers=args.workers, max_steps=args.max_steps, **{**base, **given})
+                        bc_seeds=args.bc_seeds, workers=args.workers, max_steps=args.max_steps,
+                        transition_budget=args.transition_budget, **{**base, **given})
     except ValueError as e:
         parser.error(str(e))
     return budget, Path(args.out)
@@ -431,7 +455,8 @@ def main(argv: list[str] | None = None) -> dict:
     for r in summary["bc"]:
         h = r["held_out"]
         per_seed = ", ".join(f"seed {s['seed']} {s['held_out']['successes']}/{s['held_out']['n']}" for s in r["seeds"])
-        print(f"BC {r['rounds']} round(s): {r['transitions']:>7d} transitions -> "
+        cap = f" capped at {r['transition_budget']}" if r.get("transition_budget") else ""
+        print(f"BC {r['rounds']} round(s){cap}: {r.get('transitions', 0):>7d} transitions -> "
               + (f"{100 * h['success']:.1f}% ({h['successes']}/{h['n']}; {per_seed})" if h else "no data"))
     p = summary["ppo"]
     if p:

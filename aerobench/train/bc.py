@@ -74,6 +74,8 @@ class BCConfig:
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
     hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes"})
     outcomes: tuple[str, ...] = field(default=("S",), metadata={"help": "episode outcomes to train on (spec: S)"})
+    max_transitions: int | None = field(default=None, metadata={"help": "a data budget: train on the leading selected "
+                                        "episodes, in dataset order, whose frames total at most this (default: all)"})
     image_size: int = field(default=64, metadata={"help": "camera images are reduced to this many pixels a side"})
     save_every: int = field(default=1_000, metadata={"help": "checkpoint every N steps (and at the end)"})
     log_every: int = field(default=50, metadata={"help": "log scalars every N steps"})
@@ -94,6 +96,8 @@ class BCConfig:
         for name in ("steps", "batch_size", "save_every", "log_every", "image_size", "threads"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) > 0):
                 raise ValueError(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(self, name)}")
+        if self.max_transitions is not None and not (isinstance(self.max_transitions, int) and self.max_transitions > 0):
+            raise ValueError(f"--max-transitions must be a positive integer, got {self.max_transitions}")
         if not self.learning_rate > 0:
             raise ValueError(f"--learning-rate must be positive, got {self.learning_rate}")
         bad = [o for o in self.outcomes if o not in OUTCOMES]
@@ -121,6 +125,19 @@ def select_episodes(root: Path, outcomes: tuple[str, ...]) -> list[int]:
         raise ValueError(f"{root} has no {EPISODES_FILE}: BC reads an aerobench export (aerobench generate --out DIR, "
                          f"merged) whose annotations name each episode's outcome")
     return [int(r["dataset_episode_index"]) for r in read_jsonl(path) if r["outcome"] in outcomes]
+
+
+def within_budget(episodes: list[int], frame_episode: torch.Tensor, max_transitions: int) -> list[int]:
+    """The leading `episodes` (in their order) whose frames total at most `max_transitions`; `frame_episode` holds
+    the episode index of every frame of the dataset."""
+    lengths = torch.bincount(frame_episode.long())
+    kept, total = [], 0
+    for e in episodes:
+        total += int(lengths[e]) if e < len(lengths) else 0
+        if total > max_transitions:
+            break
+        kept.append(e)
+    return kept
 
 
 def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
@@ -151,6 +168,11 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
                              f"(exported by an older aerobench); re-export it with aerobench generate")
         columns.append(TASK_STATE_KEY)
     table = ds.hf_dataset.select_columns(columns).with_format("torch")[:]
+    if config.max_transitions is not None:
+        episodes = within_budget(episodes, table["episode_index"], config.max_transitions)
+        if not episodes:
+            raise ValueError(f"--max-transitions {config.max_transitions} is below the first episode's length; "
+                             f"raise it or leave it out")
     chosen = torch.isin(table["episode_index"], torch.tensor(episodes)).nonzero()[:, 0]
     frames = inputs.frame(table[STATE_KEY][chosen], table[TASK_STATE_KEY][chosen] if inputs.reads_task_state else None)
     data = {"state": inputs.stack_episodes(frames, table["episode_index"][chosen]),

@@ -106,6 +106,15 @@ def test_learning_curves_end_to_end_and_resume(learning_curves_run):
     assert [outcome(r) for r in again["bc"]] == [outcome(r) for r in summary["bc"]]
     assert again["ppo"]["curve"] == summary["ppo"]["curve"] and again["ppo"]["train_s"] == summary["ppo"]["train_s"]
 
+    # a data budget adds one BC point on the leading demos (collection order) and reuses everything else
+    cap = saved["bc"][1]["transitions"] - 1  # admits round 1's demo, not round 2's
+    capped = learning_curves.main(args + ["--transition-budget", str(cap)])
+    assert {p: p.read_text() for p in records} == before
+    assert [outcome(r) for r in capped["bc"][:2]] == [outcome(r) for r in summary["bc"]]
+    row = capped["bc"][2]
+    assert row["transition_budget"] == cap and row["transitions"] == saved["bc"][0]["transitions"] and row["demos"] == 1
+    assert row["held_out"]["n"] == 1 and Path(row["checkpoint"]).is_dir() and row["checkpoint"] != saved["bc"][1]["checkpoint"]
+
 
 def test_diversity_end_to_end(learning_curves_run, tmp_path):
     # training a BC and a PPO checkpoint is the learning-curves bench's shared helpers, tested above; reuse its runs

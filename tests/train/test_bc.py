@@ -14,7 +14,7 @@ import torch
 from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
-from aerobench.train.bc import BCConfig, train_bc
+from aerobench.train.bc import BCConfig, train_bc, within_budget
 from aerobench.train.common import read_scalars, torch_threads
 
 BIN = Path(sys.executable).parent
@@ -177,6 +177,30 @@ def test_bc_is_deterministic_and_resumes_exactly(state_dataset, tmp_path):
     assert read_scalars(tmp_path / "r", "losses/bc") == read_scalars(tmp_path / "a", "losses/bc")
     assert torch.load(r / "train_state.pt", weights_only=False)["step"] == 40
     assert train_bc(cfg(tmp_path / "r", 40)) == r  # already finished: nothing to do
+
+
+def test_a_data_budget_keeps_the_leading_episodes_that_fit():
+    frame_episode = torch.tensor([0] * 5 + [1] * 3 + [2] * 4 + [3] * 2)  # episodes of 5, 3, 4, 2 frames
+    assert within_budget([0, 1, 2, 3], frame_episode, 8) == [0, 1]  # 5 + 3 fits, 5 + 3 + 4 does not
+    assert within_budget([0, 2, 3], frame_episode, 10) == [0, 2]  # in the order given, skipping unselected episodes
+    assert within_budget([1, 3], frame_episode, 100) == [1, 3]
+    assert within_budget([0, 1], frame_episode, 4) == []  # stops at the first episode over the budget
+
+
+def test_bc_trains_within_a_data_budget(state_dataset, tmp_path):
+    both = ("S", "T")  # the fixture's two episodes: one success, one truncation
+    full = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "all"), steps=1, hidden=(8,), progress=False,
+                             outcomes=both))
+    full_data = json.loads((full / "config.json").read_text())["data"]
+    assert full_data["episodes"] == 2
+    first = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "cap"), steps=1, hidden=(8,), progress=False,
+                              outcomes=both, max_transitions=full_data["frames"] - 1))
+    data = json.loads((first / "config.json").read_text())["data"]
+    assert data["episodes"] == 1 and 0 < data["frames"] < full_data["frames"]
+    with pytest.raises(ValueError, match="below the first episode's length"):
+        train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "tiny"), steps=1, progress=False, max_transitions=1))
+    with pytest.raises(ValueError, match="--max-transitions must be a positive integer"):
+        BCConfig(dataset=str(state_dataset), out=str(tmp_path), max_transitions=0)
 
 
 def test_bc_errors_are_one_line(state_dataset, tmp_path):
