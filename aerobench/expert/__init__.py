@@ -14,10 +14,10 @@ from .pick import PickExpert
 from .place import PlaceExpert
 
 
-def _expert_for(env, evaluator, carrying: bool):
+def _expert_for(env, evaluator, carrying: bool, after_stage: bool):
     skill = evaluator.skill
     if skill == "pick":
-        return PickExpert(env, evaluator)
+        return PickExpert(env, evaluator, after_stage=after_stage)
     if skill == "place":
         return PlaceExpert(env, evaluator)
     if skill == "nav":
@@ -36,7 +36,7 @@ class ExpertController:
         self.env = env
         carrying, self.experts = False, []
         for evaluator in env.evaluators:
-            self.experts.append(_expert_for(env, evaluator, carrying))
+            self.experts.append(_expert_for(env, evaluator, carrying, after_stage=bool(self.experts)))
             carrying = evaluator.skill == "pick" or (carrying and evaluator.skill != "place")
         self.stage = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
 

@@ -4,6 +4,9 @@ Gripper platform: the grasp is taken from above (the L-shaped approach of the sp
 fly over the object, then descend onto it). Arm platform: the fingers point forward, so the grasp is taken from the
 side at the object's grasp height, reaching in along the heading. Guards: a grasp that does not close within its
 time, or is lost while lifting, reopens and retries from the pre-grasp point (at most `MAX_RETRIES` times).
+A pick that follows another chain stage (e.g. after opening the fridge, the fingers still at the door's handle) first
+backs away from where that stage left it and follows a planned route to the pre-grasp point (ROUTE), because the
+straight line from a handle into the fridge sweeps the fingers across the open door.
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ import torch
 from ..envs.platforms import MAX_SPEED_MPS
 from .base import SkillExpert
 from .motion import wrap_angle
+from .planner import planner_for
+from .route import RouteFollower
 
 APPROACH_SPEED_MPS = 0.5
 ALIGN_TOLERANCE_M = 0.012  # at most; wide objects leave the open fingers only a few mm (master chef can: 4 mm)
@@ -32,7 +37,18 @@ CLOSE_TIMEOUT_STEPS = 40
 ABOVE_OBJECT_M = 0.10  # pre-grasp: the finger tips this far above the object's top (gripper platform)
 SIDE_STANDOFF_M = 0.15  # pre-grasp: the tool centre point this far back from the grasp point (arm platform)
 MAX_RETRIES = 2
+BACK_OFF_M = 0.45  # a pick after another stage first backs this far away, keeping its heading, then turns
+STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point along the grasp heading, the arm
+# still outside whatever holds the object (a fridge shelf): the planner needs the route's end clear of the scene
+ROUTE_SPEED_MPS = 0.3
+ROUTE_ARRIVED_M = 0.05
 FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
+
+
+def _turned(v: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+    """`(N, 3)` vectors turned about z by `angle` `(N,)`."""
+    c, s = torch.cos(angle), torch.sin(angle)
+    return torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
 
 
 class PickPhase(IntEnum):
@@ -43,14 +59,18 @@ class PickPhase(IntEnum):
     LIFT = 4
     HOLD = 5
     REOPEN = 6
+    ROUTE = 7  # back off, then follow the planned route to the pre-grasp point (a pick after another stage)
 
 
 class PickExpert(SkillExpert):
     """The grasp heading and grasp point are the evaluator's (planned when the skill starts; `skills.pick`), the same
     ones the task state shows a learned policy."""
 
-    def __init__(self, env, evaluator):
+    def __init__(self, env, evaluator, after_stage: bool = False):
         super().__init__(env, evaluator)
+        self.after_stage = after_stage
+        self.route = RouteFollower(self.n, self.device) if after_stage else None
+        self.back_yaw = torch.zeros(self.n, device=self.device)  # the heading kept while backing off
         side_room = (env.platform.gripper.max_opening_m - env.target_grasp_width) / 2
         self.align_tolerance = (side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
         self.lift_from = torch.zeros(self.n, 3, device=self.device)
@@ -59,6 +79,24 @@ class PickExpert(SkillExpert):
     def reset(self, env_idx):
         super().reset(env_idx)
         self.retries[env_idx] = 0
+        if self.after_stage:
+            self._plan_route(env_idx)
+
+    def _plan_route(self, env_idx: torch.Tensor) -> None:
+        """Airframe waypoints: straight back along the current heading, then the planner's route to a staging point
+        `STAGING_M` before the pre-grasp point along the grasp heading (APPROACH flies the rest straight)."""
+        state = self.state()
+        offset = _turned(self.tcp() - state.position, self.heading - state.yaw)  # the TCP's offset once turned
+        along = torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
+        staging = self.pre_grasp(self.grasp_point()) - offset - STAGING_M * along
+        back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
+        self.back_yaw[env_idx] = state.yaw[env_idx]
+        for i in env_idx.tolist():
+            start, goal = (state.position[i] - back[i]).cpu().numpy(), staging[i].cpu().numpy()
+            route = planner_for(self.env, i, heading=float(self.heading[i])).plan(start, goal)
+
+            self.route.set(i, [start] + (route if route is not None else [goal]))
+        self.phase[env_idx] = PickPhase.ROUTE
 
     @property
     def heading(self) -> torch.Tensor:
@@ -88,6 +126,10 @@ class PickExpert(SkillExpert):
         grasped = info["is_grasped"]
 
         # transitions
+        routing = self.in_phase(P.ROUTE)
+        if self.after_stage:
+            waypoint, last = self.route.target(state.position)
+            self.goto(P.ROUTE, last & (torch.linalg.norm(waypoint - state.position, dim=-1) < ROUTE_ARRIVED_M), P.APPROACH)
         at_pre = torch.linalg.norm(tcp - pre, dim=-1) < 0.04
         self.goto(P.APPROACH, at_pre, P.ALIGN)
         aligned = (torch.linalg.norm((tcp - pre)[:, :2], dim=-1) < self.align_tolerance) & yaw_ok & (speed < SETTLED_MPS)
@@ -128,5 +170,11 @@ class PickExpert(SkillExpert):
         gripper = torch.where(closed, torch.full((self.n,), -1.0, device=self.device), torch.ones(self.n, device=self.device))
         fine = (phase == P.ALIGN) | (phase == P.DESCEND) | (phase == P.CLOSE)
         gain = torch.where(fine, FINE_GAIN, 1.2)
-        return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), self.heading, gripper, gain=gain)
+        tracked, yaw = None, self.heading
+        if self.after_stage:  # on the route the airframe is driven to the waypoints
+            target = torch.where(routing[:, None], waypoint, target)
+            max_speed = torch.where(routing, torch.full_like(max_speed, ROUTE_SPEED_MPS), max_speed)
+            tracked = torch.where(routing[:, None], state.position, tcp)
+            yaw = torch.where(routing & (self.route.index == 0), self.back_yaw, yaw)
+        return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), yaw, gripper, gain=gain, tracked=tracked)
 

@@ -221,3 +221,23 @@ def test_bad_names_are_one_line_errors(env_id, kwargs, message):
     with pytest.raises(ValueError) as e:
         gym.make(env_id, **kwargs)
     assert str(e.value).startswith(message) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("obj", ["master_chef_can", "cracker_box"])
+def test_a_fridge_shelf_pick_is_planned_straight_in_through_the_front(obj):
+    """The fridge's side walls leave one way in: the grasp heading points through its front (the support's -x), for a
+    round can exactly, and a box stands with a grasp axis along it; the drone's own heading does not choose it."""
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
+                   chain="open_pick_nav_place")
+    env.reset(seed=20000060, options={"reconfigure": True, "objects": [obj]})
+    base = env.unwrapped
+    pick = base.evaluators[1]
+    assert pick.skill == "pick" and bool(pick.enclosed[0])
+    shelf = base.supports[0, pick.support_index[0]]
+    inward = float(shelf[5]) + math.pi
+    for yaw in (0.0, math.pi / 2, -math.pi / 2):  # wherever the open stage left the drone facing
+        base.set_drone(ENV0, base.agent.airframe_state().position, torch.tensor([yaw]))
+        pick.begin(ENV0)
+        error = math.remainder(float(pick.heading[0]) - inward, 2 * math.pi)
+        assert abs(error) < (1e-5 if obj == "master_chef_can" else 0.16), (yaw, error)
+    env.close()

@@ -13,11 +13,16 @@ from ..observations import wrap_to_period
 from ..tasks import instruction
 from .base import AeroSkillEnv
 from .evaluator import GoalFeatures, SkillEvaluator
+from .starts import SUPPORT_KINDS
 
 PICK_LIFT_M = 0.10  # lift threshold above the instance's own resting height (so it differs per instance)
 PICK_HOLD_STEPS = 10  # consecutive control steps grasped and lifted (0.5 s)
 START_ABOVE_OBJECT_M = 0.15  # the tool centre point starts at least this far above the object's top
 ROUND_SHAPES = ("cylinder", "bowl")  # round about z: any heading on the room axes grasps them
+# Supports inside a fixture, open only on its front (the support's +x): the grasp heading points in through the front,
+# and a box stands with a grasp axis along it (the fridge's side walls leave no other way in).
+ENCLOSED_KINDS = ("fridge_shelf",)
+ENCLOSED_YAW_NOISE_RAD = 0.15
 
 
 def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, is_round: torch.Tensor) -> torch.Tensor:
@@ -41,13 +46,23 @@ class PickEvaluator(SkillEvaluator):
         self.is_round = torch.tensor([s.shape in ROUND_SHAPES for s in specs], dtype=torch.bool, device=self.device)
         self.heading_period = torch.where(self.is_round, math.pi / 2, math.pi)
         self.heading = self.zeros()  # the grasp heading planned when the skill starts
+        self.inward = self.zeros()  # enclosed supports: the heading through the fixture's front
+        self.enclosed = self.zeros(torch.bool)
 
     def sample(self, env_idx: torch.Tensor) -> torch.Tensor:
         """Put the target upright at a random spot of a random source support; `(M,)` whether one existed."""
         env = self.env
         index, ok = env.sample_supports(env_idx, self.kinds)
         bottom = env.sample_on_support(env_idx, index, env.target_radius[env_idx] + 0.04)
+        row = env.supports[env_idx, index]
+        enclosed_ids = torch.tensor([SUPPORT_KINDS.index(k) for k in ENCLOSED_KINDS], device=self.device)
+        enclosed = (row[:, 6][:, None] == enclosed_ids).any(-1)
+        inward = row[:, 5] + math.pi
         yaw = (torch.rand(len(env_idx), device=self.device) * 2 - 1) * math.pi
+        # the closing axis (body y) lies along the object's x: x across the way in
+        noise = (torch.rand(len(env_idx), device=self.device) * 2 - 1) * ENCLOSED_YAW_NOISE_RAD
+        yaw = torch.where(enclosed, inward - math.pi / 2 + noise, yaw)
+        self.enclosed[env_idx], self.inward[env_idx] = enclosed, inward
         env.place_object(env.target, env_idx, bottom, yaw)
         self.support_index[env_idx] = index
         self.rest_z[env_idx] = bottom[:, 2]
@@ -58,7 +73,9 @@ class PickEvaluator(SkillEvaluator):
         self.rest_z[env_idx] = pose.p[env_idx, 2]
         self.hold_streak[env_idx] = 0
         object_yaw = 2 * torch.atan2(pose.q[:, 3], pose.q[:, 0])
-        planned = grasp_heading(object_yaw, self.env.agent.airframe_state().yaw, self.is_round)
+        reference = torch.where(self.enclosed, self.inward, self.env.agent.airframe_state().yaw)
+        planned = grasp_heading(object_yaw, reference, self.is_round)
+        planned = torch.where(self.enclosed & self.is_round, self.inward, planned)  # straight in through the front
         self.heading[env_idx] = planned[env_idx]
 
     def grasp_target(self, tcp: torch.Tensor) -> torch.Tensor:
