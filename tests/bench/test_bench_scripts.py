@@ -19,6 +19,7 @@ sys.path.insert(0, str(BENCH))
 import bc_inputs  # noqa: E402
 import diversity  # noqa: E402
 import learning_curves  # noqa: E402
+import release_aliasing  # noqa: E402
 import step_cost  # noqa: E402
 
 from aerobench.rollout.episode import EVENT_FLAGS  # noqa: E402
@@ -199,3 +200,31 @@ def test_ray_tracing_bench_measures_rasterized_and_says_why_not_ray_traced(tmp_p
     rows = dict(line.split(None, 1) for line in r.stdout.splitlines() if line.strip())
     assert float(rows["rasterized"].split()[0]) > 0
     assert rows["ray-traced"].startswith("not measured: ray-traced rendering needs a GPU with Vulkan ray tracing")
+
+
+def test_release_aliasing_counts_the_still_closed_frames_before_a_release(tmp_path):
+    import pandas as pd
+
+    from aerobench.envs.observations import TASK_STATE_FIELDS, field_slices
+
+    width = sum(n for _, n in TASK_STATE_FIELDS)
+    still = np.zeros(width)
+    moving = [still + 0.01 * (i + 1) for i in range(3)]
+    # episode 0: three moving closed frames, then four still closed frames, then the release (still): 4 aliased
+    # episode 1: the state moves up to the release: 0 aliased; episode 2: never releases: not counted
+    episodes = {0: (moving + [still] * 5, [-1] * 7 + [1]), 1: (moving + [still + 0.5], [-1, -1, -1, 1]),
+                2: (moving, [-1, -1, -1])}
+    rows = [{"episode_index": e, "observation.environment_state": s.astype(np.float32), "action": np.array([0, 0, 0, 0, g], np.float32)}
+            for e, (states, grips) in episodes.items() for s, g in zip(states, grips)]
+    (tmp_path / "data" / "chunk-000").mkdir(parents=True)
+    pd.DataFrame(rows).to_parquet(tmp_path / "data" / "chunk-000" / "file-000.parquet")
+    (tmp_path / "meta").mkdir()
+    (tmp_path / "meta" / "aerobench_episodes.jsonl").write_text(
+        "".join(json.dumps({"dataset_episode_index": e, "object": o}) + "\n" for e, o in ((0, "can"), (1, "box"), (2, "can"))))
+    table = release_aliasing.main([str(tmp_path), "--json", str(tmp_path / "out.json")])
+    assert table == {"box": {"episodes": 1, "median": 0.0, "mean": 0.0, "max": 0},
+                     "can": {"episodes": 1, "median": 4.0, "mean": 4.0, "max": 4}}
+    assert json.loads((tmp_path / "out.json").read_text())["objects"] == table
+    assert field_slices(TASK_STATE_FIELDS)["skill"].stop == release_aliasing.AFTER_SKILL
+    with pytest.raises(SystemExit):
+        release_aliasing.main([str(tmp_path / "missing")])
