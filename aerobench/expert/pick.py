@@ -5,8 +5,8 @@ fly over the object, then descend onto it). Arm platform: the fingers point forw
 side at the object's grasp height, reaching in along the heading. Guards: a grasp that does not close within its
 time, or is lost while lifting, reopens and retries from the pre-grasp point (at most `MAX_RETRIES` times).
 A pick that follows another chain stage (e.g. after opening the fridge, the fingers still at the door's handle) first
-backs away from where that stage left it and follows a planned route to the pre-grasp point (ROUTE), because the
-straight line from a handle into the fridge sweeps the fingers across the open door.
+backs away from where that stage left it and follows a planned route to a staging point before the pre-grasp point
+(ROUTE), because the straight line from a handle into the fridge sweeps the fingers across the open door.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ class PickPhase(IntEnum):
     LIFT = 4
     HOLD = 5
     REOPEN = 6
-    ROUTE = 7  # back off, then follow the planned route to the pre-grasp point (a pick after another stage)
+    ROUTE = 7  # back off, then follow the planned route to the staging point (a pick after another stage)
 
 
 class PickExpert(SkillExpert):
@@ -94,7 +94,6 @@ class PickExpert(SkillExpert):
         for i in env_idx.tolist():
             start, goal = (state.position[i] - back[i]).cpu().numpy(), staging[i].cpu().numpy()
             route = planner_for(self.env, i, heading=float(self.heading[i])).plan(start, goal)
-
             self.route.set(i, [start] + (route if route is not None else [goal]))
         self.phase[env_idx] = PickPhase.ROUTE
 
