@@ -16,6 +16,7 @@ from enum import IntEnum
 
 import torch
 
+from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from .base import SkillExpert
 from .motion import wrap_angle
@@ -43,12 +44,6 @@ STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point a
 ROUTE_SPEED_MPS = 0.3
 ROUTE_ARRIVED_M = 0.05
 FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
-
-
-def _turned(v: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
-    """`(N, 3)` vectors turned about z by `angle` `(N,)`."""
-    c, s = torch.cos(angle), torch.sin(angle)
-    return torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
 
 
 class PickPhase(IntEnum):
@@ -86,7 +81,8 @@ class PickExpert(SkillExpert):
         """Airframe waypoints: straight back along the current heading, then the planner's route to a staging point
         `STAGING_M` before the pre-grasp point along the grasp heading (APPROACH flies the rest straight)."""
         state = self.state()
-        offset = _turned(self.tcp() - state.position, self.heading - state.yaw)  # the TCP's offset once turned
+        # the tool centre point's offset from the airframe once turned to the grasp heading
+        offset = heading_frame(self.tcp() - state.position, state.yaw - self.heading)
         along = torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
         staging = self.pre_grasp(self.grasp_point()) - offset - STAGING_M * along
         back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
