@@ -31,7 +31,7 @@ use it. Positions in metres, in the env (world) frame unless the name says body:
 | 8-10 | goal_pos_body | the same vector in the heading frame (x forward, y left, z up) |
 | 11-13 | tcp_to_obj_pos | object bottom centre - TCP (zeros without an object) |
 | 14 | heading_error | rad, the skill's goal heading minus the yaw, wrapped to the goal's symmetry: pick: the grasp heading planned at the skill's start (mod pi for boxes, pi/2 for round objects); place, nav: the heading at the skill's start; open / close: facing the handle |
-| 15 | progress | pick: the object's lift above its resting height (m); open / close: articulation progress q_bar; place, nav: 0 |
+| 15 | progress | pick: the object's lift above its resting height (m); place: seconds the goal support has carried the object without a break, capped at 1 s (the expert releases at 0.45 s); open / close: articulation progress q_bar; nav: 0 |
 | 16 | is_grasp_confirmed | 1 once both fingers have pinched the target for `GRASP_CONFIRM_STEPS` control steps in a row, else 0 (a tactile signal, delayed so that it reports a grasp, not a closing command); an episode that starts with the object in the jaws (Place) starts confirmed |
 | 17-19 | linear_velocity | airframe velocity, m/s |
 | 20-22 | angular_velocity_body | rad/s, body frame |
@@ -71,6 +71,9 @@ TASK_STATE_FIELDS = (
 )
 TASK_STATE_DIM = sum(n for _, n in TASK_STATE_FIELDS)
 assert TASK_STATE_DIM == 26
+# Version of the task state's meaning, saved with every state policy. 1: Place `progress` was always 0. 2: it is the
+# set-down time (the place expert releases on it). A version-1 checkpoint is fed Place progress 0 (policies.inputs).
+TASK_STATE_VERSION = 2
 GRASP_CONFIRM_STEPS = 3  # control steps of a continuous pinch before `is_grasp_confirmed` reads 1
 STATE_DIM = sum(n for _, n in STATE_FIELDS)
 assert STATE_DIM == 19

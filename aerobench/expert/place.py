@@ -1,8 +1,8 @@
 """Place expert: transport, align over the goal, descend to support contact, stop before release, open, retreat.
 
 The object hangs in the jaws, so alignment and descent steer the object (not the tool centre point) onto the goal.
-Release happens only once the support carries the object and the drone has stopped (spec appendix: the expert's
-release speeds are a few mm/s); the retreat is straight up past the 0.27 m clearance, then the drone hovers still.
+Release happens only once the support has carried the object for 9 control steps (the task state's set-down time,
+which a policy reads too) and the drone has stopped (spec appendix: the expert's release speeds are a few mm/s); the retreat is straight up past the 0.27 m clearance, then the drone hovers still.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ DESCEND_SPEED_MPS = 0.10
 TOUCH_SPEED_MPS = 0.04
 TOUCH_ZONE_M = 0.04
 PRESS_SPEED_MPS = 0.04  # on the surface: keep sinking gently until the support carries the object
-SET_DOWN_STEPS = 3
+SET_DOWN_STEPS = 3  # control steps of support contact before the drone stops pressing
 STOPPED_MPS = 0.008  # "stop before release"
-STOPPED_STEPS = 6
+STOPPED_STEPS = 6  # further control steps of support contact before the release
 OPEN_STEPS = 12
 RETREAT_HEIGHT_M = 0.40  # above the release point: beyond the 0.27 m clearance with margin
 RETREAT_SPEED_MPS = 0.2
@@ -79,9 +79,12 @@ class PlaceExpert(SkillExpert):
 
         self.goto(P.TRANSPORT, torch.linalg.norm(obj - above, dim=-1) < 0.04, P.ALIGN)
         self.goto(P.ALIGN, (xy_error < ALIGN_TOLERANCE_M) & (speed < SETTLED_MPS), P.DESCEND)
-        set_down = info["is_set_down"] & (self.timer >= SET_DOWN_STEPS)
-        self.goto(P.DESCEND, set_down, P.STOP)
-        self.goto(P.STOP, (speed < STOPPED_MPS) & (self.timer >= STOPPED_STEPS), P.OPEN)
+        # Release on what the task state shows (Place `progress` = the set-down time), never on a private timer: a
+        # policy that sees the same inputs can learn when to open (docs/experiments.md, "What fails: the release").
+        set_down_steps = info["set_down_steps"]
+        self.goto(P.STOP, set_down_steps == 0, P.DESCEND)  # the support let go: press again
+        self.goto(P.DESCEND, set_down_steps >= SET_DOWN_STEPS, P.STOP)
+        self.goto(P.STOP, (speed < STOPPED_MPS) & (set_down_steps >= SET_DOWN_STEPS + STOPPED_STEPS), P.OPEN)
         started = self.goto(P.OPEN, self.timer >= OPEN_STEPS, P.RETREAT)
         self.release_point = torch.where(started[:, None], tcp, self.release_point)
         risen = tcp[:, 2] >= self.release_point[:, 2] + RETREAT_HEIGHT_M - 0.02

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..annotation.record import EpisodeRecord
+from ..envs.observations import TASK_STATE_VERSION
 from ..envs.tasks import SKILLS
 from ..rollout.episode import EVENT_FLAGS, EpisodeData
 from .depth import DEPTH_ENCODING
@@ -225,7 +226,9 @@ class DatasetSink:
         if part_size < 1:
             raise ValueError(f"part_size must be >= 1, got {part_size}")
         self.root = Path(root)
-        self.spec = dict(spec)
+        # the task state's meaning goes with the data: a resume by another version is refused (the specs differ),
+        # and a policy trained on it reads the task state as it was recorded (policies.inputs)
+        self.spec = {"task_state_version": TASK_STATE_VERSION, **spec}
         self.shard, self.num_shards = _shard_of(self.spec)
         self.part_size = part_size
         self._keep = keep
@@ -365,6 +368,14 @@ def read_dataset_meta(root: Path) -> dict | None:
     """root/meta/aerobench.json of a merged (or filtered) dataset, None when there is none."""
     path = Path(root) / "meta" / DATASET_META_FILE
     return json.loads(path.read_text()) if path.exists() else None
+
+
+def dataset_task_state_version(root: Path) -> int:
+    """The `observations.TASK_STATE_VERSION` a dataset was recorded with (1: before versions were recorded)."""
+    meta = read_dataset_meta(root)
+    if meta is None:
+        return TASK_STATE_VERSION  # not written by aerobench's sink: its task state layout was checked by the reader
+    return int(meta.get("generation", {}).get("task_state_version", 1))
 
 
 def _swap_in(root: Path, work: Path) -> None:

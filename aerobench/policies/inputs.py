@@ -14,9 +14,17 @@ from dataclasses import asdict, dataclass
 
 import torch
 
-from ..envs.observations import ARM_STATE_FIELDS, STATE_FIELDS, field_slices, task_state_fields
+from ..envs.observations import (
+    ARM_STATE_FIELDS,
+    STATE_FIELDS,
+    TASK_STATE_VERSION,
+    field_slices,
+    task_state_fields,
+)
+from ..envs.tasks import SKILLS
 
 ALL_TASK_FIELDS = tuple(name for name, _ in task_state_fields(with_arm=True))
+TASK_STATE_FIELDS_ANY = task_state_fields(with_arm=False)  # the arm's fields come after these: same indices
 ALL_STATE_FIELDS = tuple(name for name, _ in STATE_FIELDS + ARM_STATE_FIELDS)
 FINGER_FIELDS = ("finger_position", "finger_velocity")
 
@@ -24,11 +32,13 @@ FINGER_FIELDS = ("finger_position", "finger_velocity")
 @dataclass(frozen=True)
 class InputSpec:
     """`state_fields` of the proprio state and `task_fields` of the task state, in that order, per frame; `history`
-    frames (the current one first, then older ones; an episode's first frame repeats until there are enough)."""
+    frames (the current one first, then older ones; an episode's first frame repeats until there are enough);
+    `task_state_version`: the meaning of the task state the policy was trained on (`observations.TASK_STATE_VERSION`)."""
 
     state_fields: tuple[str, ...] = ()
     task_fields: tuple[str, ...] = ALL_TASK_FIELDS
     history: int = 1
+    task_state_version: int = TASK_STATE_VERSION
 
     def __post_init__(self):
         object.__setattr__(self, "state_fields", tuple(self.state_fields))
@@ -43,6 +53,9 @@ class InputSpec:
             raise ValueError("a state policy must read at least one state or task state field")
         if not (isinstance(self.history, int) and self.history >= 1):
             raise ValueError(f"--history must be a positive integer, got {self.history}")
+        if not 1 <= self.task_state_version <= TASK_STATE_VERSION:
+            raise ValueError(f"task state version {self.task_state_version} is newer than this aerobench's "
+                             f"({TASK_STATE_VERSION}); upgrade aerobench to use this checkpoint")
 
     @property
     def reads_task_state(self) -> bool:
@@ -69,8 +82,19 @@ class InputSpec:
         if self.task_fields:
             if task_state is None:
                 raise ValueError("this policy reads the task state (observation.environment_state) but none was given")
-            parts.append(task_state.float().to(state.device)[..., ti])
+            parts.append(self._as_trained(task_state.float().to(state.device))[..., ti])
         return torch.cat(parts, dim=-1)
+
+    def _as_trained(self, task_state: torch.Tensor) -> torch.Tensor:
+        """The task state in the meaning the policy was trained on: version 1 read Place `progress` as 0."""
+        if self.task_state_version >= 2 or "progress" not in self.task_fields:
+            return task_state
+        fields = field_slices(TASK_STATE_FIELDS_ANY)
+        place = task_state[..., fields["skill"].start + SKILLS.index("place")] > 0.5
+        progress = fields["progress"].start
+        legacy = task_state.clone()
+        legacy[..., progress] = torch.where(place, torch.zeros_like(legacy[..., progress]), legacy[..., progress])
+        return legacy
 
     def stack_episodes(self, frames: torch.Tensor, episode_index: torch.Tensor) -> torch.Tensor:
         """`(T, F)` frames of whole episodes in order -> `(T, history * F)`: each row with its `history - 1`
@@ -88,7 +112,7 @@ class InputSpec:
 
     @classmethod
     def from_dict(cls, d: dict) -> InputSpec:
-        return cls(**d)
+        return cls(**{"task_state_version": 1, **d})  # saved before the version was recorded: version 1
 
 
 class FrameHistory:

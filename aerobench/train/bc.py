@@ -17,7 +17,7 @@ uninterrupted one would: resuming from step N to 2N gives the same weights as on
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import torch
@@ -25,6 +25,7 @@ from torch.nn import functional as F
 
 from ..envs.observations import STATE_DIM, task_state_fields
 from ..export.features import VIDEO_BACKEND
+from ..export.sink import dataset_task_state_version
 from ..policies.inputs import InputSpec
 from ..policies.learned import (
     CAMERAS,
@@ -157,7 +158,7 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         if missing:
             raise ValueError(f"{root} has no camera features ({', '.join(missing)}); export with cameras or drop --images")
     with_arm = ds.features[STATE_KEY]["shape"][0] > STATE_DIM
-    inputs = config.input_spec(with_arm)
+    inputs = replace(config.input_spec(with_arm), task_state_version=dataset_task_state_version(root))
     columns = ["episode_index", STATE_KEY, ACTION_KEY]
     if inputs.reads_task_state:
         if TASK_STATE_KEY not in ds.features:

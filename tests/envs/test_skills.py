@@ -8,6 +8,8 @@ import torch
 
 import aerobench.envs  # noqa: F401
 from aerobench.envs.checks import FailureCause, Phase
+from aerobench.envs.observations import TASK_STATE_FIELDS, field_slices
+from aerobench.envs.platforms import CONTROL_HZ
 from aerobench.envs.scenes import articulated
 from aerobench.envs.skills.articulation import advance_phase
 from aerobench.envs.skills.place import put_object_in_gripper
@@ -63,6 +65,11 @@ def test_place_protocol_release_clear_and_stable():
         _, _, _, _, info = _step(env)
     assert bool(info["is_grasped"][0]) and bool(info["is_set_down"][0]) and not bool(info["success"][0])
     assert float(base.agent.body_controller.memory.mass_hat[0]) == pytest.approx(2.38)  # support carries it
+    # the task state shows how long the support has carried the object (the expert releases on it)
+    carried = int(info["set_down_steps"][0])
+    assert 1 <= carried <= 5
+    progress = base.task_state()[0, field_slices(TASK_STATE_FIELDS)["progress"]]
+    assert float(progress) == pytest.approx(carried / CONTROL_HZ)
     for _ in range(10):
         _, _, _, _, info = _step(env, grip=1.0)
     assert bool(info["release_registered"][0]) and not bool(info["is_gripper_clear"][0])

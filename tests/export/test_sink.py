@@ -8,11 +8,19 @@ import numpy as np
 import pytest
 
 from aerobench.annotation.record import EpisodeRecord
+from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.envs.tasks import SKILLS
 from aerobench.export import sink as sink_module
 from aerobench.export.depth import decode_depth_mm
 from aerobench.export.features import depth_key, rgb_key
-from aerobench.export.sink import EPISODES_FILE, DatasetSink, completed_parts, merge_parts, read_jsonl
+from aerobench.export.sink import (
+    EPISODES_FILE,
+    DatasetSink,
+    completed_parts,
+    dataset_task_state_version,
+    merge_parts,
+    read_jsonl,
+)
 from aerobench.rollout.episode import CAMERAS, EVENT_FLAGS, EpisodeData
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -124,7 +132,13 @@ def test_camera_dataset_loads_with_every_feature(camera_root):
                 assert np.array_equal(decode_depth_mm(item[depth_key(camera)]), episode.frames[f"depth/{camera}"][t])
             frame += 1
     meta = json.loads((root / "meta" / "aerobench.json").read_text())
-    assert meta["skills"] == list(SKILLS) and meta["generation"] == SPEC
+    assert meta["skills"] == list(SKILLS) and meta["generation"] == {**SPEC, "task_state_version": TASK_STATE_VERSION}
+    assert dataset_task_state_version(root) == TASK_STATE_VERSION
+    written = (root / "meta" / "aerobench.json").read_text()
+    del meta["generation"]["task_state_version"]  # as written before versions were recorded
+    (root / "meta" / "aerobench.json").write_text(json.dumps(meta))
+    assert dataset_task_state_version(root) == 1
+    (root / "meta" / "aerobench.json").write_text(written)
     assert len(completed_parts(root)) == 2 and not any(p.name.startswith(".tmp") for p in (root / ".aerobench/parts").iterdir())
 
 

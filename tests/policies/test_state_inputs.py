@@ -3,7 +3,8 @@
 import pytest
 import torch
 
-from aerobench.envs.observations import STATE_DIM, TASK_STATE_DIM
+from aerobench.envs.observations import STATE_DIM, TASK_STATE_DIM, TASK_STATE_FIELDS, TASK_STATE_VERSION, field_slices
+from aerobench.envs.tasks import SKILLS
 from aerobench.policies.inputs import FINGER_FIELDS, FrameHistory, InputSpec
 from aerobench.policies.learned import Normalizer, env_action, identity_stats, normalization_stats
 from aerobench.train.bc import gripper_targets
@@ -28,6 +29,23 @@ def test_bad_field_names_and_platform_mismatches_are_one_line_errors():
         InputSpec(task_fields=())
     with pytest.raises(ValueError, match="gripper platform's observations have no \\['arm_position'\\]"):
         InputSpec(task_fields=("arm_position",)).frame(torch.zeros(1, STATE_DIM), torch.zeros(1, TASK_STATE_DIM))
+
+
+def test_a_policy_reads_the_task_state_in_the_version_it_was_trained_on():
+    """Version 1 (before Place's progress became the set-down time) read Place progress as 0; Pick's is unchanged."""
+    fields = field_slices(TASK_STATE_FIELDS)
+    task = torch.zeros(2, TASK_STATE_DIM)
+    task[0, fields["skill"].start + SKILLS.index("place")] = 1.0
+    task[1, fields["skill"].start + SKILLS.index("pick")] = 1.0
+    task[:, fields["progress"]] = 0.45
+    state = torch.zeros(2, STATE_DIM)
+    current = InputSpec(task_fields=("progress",))
+    assert current.task_state_version == TASK_STATE_VERSION and current.frame(state, task)[:, 0].tolist() == pytest.approx([0.45, 0.45])
+    legacy = InputSpec.from_dict({"state_fields": [], "task_fields": ["progress"], "history": 1})  # no version saved
+    assert legacy.task_state_version == 1 and legacy.frame(state, task)[:, 0].tolist() == pytest.approx([0.0, 0.45])
+    assert InputSpec.from_dict(current.as_dict()) == current
+    with pytest.raises(ValueError, match="upgrade aerobench"):
+        InputSpec(task_state_version=TASK_STATE_VERSION + 1)
 
 
 def test_history_repeats_an_episodes_first_frame_and_never_crosses_episodes():

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 import torch
 
+from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
@@ -71,6 +72,7 @@ def test_bc_trains_on_successful_episodes_only(state_dataset, trained):
     assert config["model"]["state_dim"] == 3 * 26 and config["model"]["action_dim"] == 5
     assert config["model"]["inputs"]["history"] == 3
     assert config["model"]["inputs"]["state_fields"] == [] and len(config["model"]["inputs"]["task_fields"]) == 11
+    assert config["model"]["inputs"]["task_state_version"] == TASK_STATE_VERSION  # that of the dataset it read
     assert config["model"]["gripper"] == "binary"
     losses = [v for _, v in read_scalars(trained, "losses/bc")]
     assert len(losses) == 300 // 25

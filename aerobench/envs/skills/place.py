@@ -25,6 +25,7 @@ PLACE_CLEARANCE_M = 0.27  # spec: gripper more than 0.27 m from the object
 PLATFORM_STABLE_MPS = 0.025  # spec: platform speed below 0.025 m/s ...
 PLATFORM_STABLE_STEPS = 20  # ... for 20 consecutive control steps
 HOVER_ABOVE_GOAL_M = 0.05  # the anchor: the tool centre point a little above its placed position
+SET_DOWN_OBSERVED_S = 1.0  # the task state's set-down time saturates here (the expert releases after 0.45 s)
 
 
 class PlaceEvaluator(SkillEvaluator):
@@ -37,6 +38,7 @@ class PlaceEvaluator(SkillEvaluator):
         self.goal_support = self.zeros(torch.long)
         self.released = self.zeros(torch.bool)
         self.stable_streak = self.zeros(torch.long)
+        self.set_down_streak = self.zeros(torch.long)
         self.unsupported_streak = self.zeros(torch.long)
         self.collision_impulse = self.zeros()
         self.heading = self.zeros()  # held from the skill's start: the object keeps its place in the jaws
@@ -53,6 +55,7 @@ class PlaceEvaluator(SkillEvaluator):
         self.heading[env_idx] = self.env.agent.airframe_state().yaw[env_idx]
         self.released[env_idx] = False
         self.stable_streak[env_idx] = 0
+        self.set_down_streak[env_idx] = 0
         self.unsupported_streak[env_idx] = 0
         self.collision_impulse[env_idx] = 0.0
 
@@ -75,6 +78,7 @@ class PlaceEvaluator(SkillEvaluator):
         at_height = (ctx.object_bottom_z - self.goal[:, 2]).abs() < PLACE_REST_TOLERANCE_M
         on_goal_support = env.inside_support(all_envs, self.goal_support, obj_xy)
         support_contact = ctx.is_supported & at_height & on_goal_support
+        self.set_down_streak = self.keep(mine, consecutive(self.set_down_streak, support_contact), self.set_down_streak)
         object_still = torch.linalg.norm(ctx.object_velocity, dim=-1) < OBJECT_STILL_MPS
         placed = (horizontal < PLACE_GOAL_RADIUS_M) & ctx.is_upright & object_still & support_contact
         wide_open = env.platform.gripper.max_opening_m - GRIPPER_FULLY_OPEN_SLACK_M
@@ -99,6 +103,7 @@ class PlaceEvaluator(SkillEvaluator):
             "is_aligned": horizontal < PLACE_ALIGN_M,
             "is_support_contact": support_contact,
             "is_set_down": support_contact,
+            "set_down_steps": self.set_down_streak.clone(),
             "is_placed": placed,
             "is_gripper_open": gripper_open,
             "is_released": release,
@@ -113,8 +118,13 @@ class PlaceEvaluator(SkillEvaluator):
         return GoalFeatures(
             goal_pos=self.goal - ctx.object_pose.p,
             heading_error=wrap_angle(self.heading - ctx.state.yaw),
-            progress=torch.zeros_like(self.heading),
+            progress=self.set_down_time(),
         )
+
+    def set_down_time(self) -> torch.Tensor:
+        """`(N,)` seconds the goal support has carried the object without a break, capped: what a gripper's force
+        sensing reports as the load leaving the fingers. The expert releases on it, so a policy can too."""
+        return torch.clamp(self.set_down_streak.float() / CONTROL_HZ, max=SET_DOWN_OBSERVED_S)
 
     def instruction(self, env):
         support = self.env.support_of(env, int(self.goal_support[env]))
