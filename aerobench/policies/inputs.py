@@ -24,7 +24,7 @@ from ..envs.observations import (
 from ..envs.tasks import SKILLS
 
 ALL_TASK_FIELDS = tuple(name for name, _ in task_state_fields(with_arm=True))
-TASK_STATE_FIELDS_ANY = task_state_fields(with_arm=False)  # the arm's fields come after these: same indices
+TASK_SLICES = field_slices(task_state_fields(with_arm=False))  # the arm's fields come after these: same indices
 ALL_STATE_FIELDS = tuple(name for name, _ in STATE_FIELDS + ARM_STATE_FIELDS)
 FINGER_FIELDS = ("finger_position", "finger_velocity")
 
@@ -89,11 +89,10 @@ class InputSpec:
         """The task state in the meaning the policy was trained on: version 1 read Place `progress` as 0."""
         if self.task_state_version >= 2 or "progress" not in self.task_fields:
             return task_state
-        fields = field_slices(TASK_STATE_FIELDS_ANY)
-        place = task_state[..., fields["skill"].start + SKILLS.index("place")] > 0.5
-        progress = fields["progress"].start
+        place = task_state[..., TASK_SLICES["skill"].start + SKILLS.index("place")] > 0.5
+        progress = TASK_SLICES["progress"].start
         legacy = task_state.clone()
-        legacy[..., progress] = torch.where(place, torch.zeros_like(legacy[..., progress]), legacy[..., progress])
+        legacy[..., progress] = legacy[..., progress].masked_fill(place, 0.0)
         return legacy
 
     def stack_episodes(self, frames: torch.Tensor, episode_index: torch.Tensor) -> torch.Tensor:
