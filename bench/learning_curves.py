@@ -67,6 +67,7 @@ class Budget:
     workers: int = 1  # collection and evaluation processes
     max_steps: int | None = None  # truncate held-out and PPO training episodes (smoke tests; collection runs in full)
     transition_budget: int | None = None  # one more BC point: the leading demos of all rounds within this many frames
+    action_noise: float = 0.0  # DART noise on the collection rounds' executed flight commands (aerobench.rollout.noise)
 
     def __post_init__(self):
         if self.skill not in SKILLS:
@@ -75,6 +76,9 @@ class Budget:
             raise ValueError("--bc-seeds needs at least one seed, --workers at least 1, --ppo-steps at least 0")
         if not self.rounds or any(r < 1 for r in self.rounds) or list(self.rounds) != sorted(set(self.rounds)):
             raise ValueError(f"--rounds must be increasing positive integers like 1,2,4,8; got {self.rounds}")
+        from aerobench.rollout.noise import check_action_noise
+
+        check_action_noise(self.action_noise)
         if self.transition_budget is not None and self.transition_budget < 1:
             raise ValueError(f"--transition-budget must be a positive integer, got {self.transition_budget}")
         for name in ("rollouts_per_round", "bc_steps", "eval_per_object", "window"):
@@ -94,7 +98,8 @@ def collect_round(budget: Budget, k: int, root: Path) -> dict:
     from aerobench.rollout.runner import RolloutSpec
 
     spec = RolloutSpec(setting=budget.setting, skills=(budget.skill,), episodes=budget.rollouts_per_round,
-                       objects=budget.objects, seed=k, policy="expert", record_cameras=False)
+                       objects=budget.objects, seed=k, policy="expert", record_cameras=False,
+                       action_noise=budget.action_noise)
     started = time.monotonic()
     run_done = sum(in_workers(_collect_shard, [(spec, (i, budget.workers), root) for i in range(budget.workers)]))
     if (root / ".aerobench" / "parts").is_dir():
@@ -420,6 +425,9 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
     parser.add_argument("--transition-budget", type=int, default=None,
                         help="also train BC on the leading demos of all rounds (collection order) within this many "
                              "transitions, e.g. 81000 for the spec's '67-81k'")
+    parser.add_argument("--action-noise", type=float, default=0.0,
+                        help="collect the rounds with DART noise of this std on the executed flight commands (the "
+                             "demonstrations keep the expert's own actions); held-out evaluations run without noise")
     parser.add_argument("--spec-scale", action="store_true",
                         help="the spec's budget: rounds 1,2,4,8 of 256 rollouts, 20k BC steps, 5M PPO interactions, "
                              "50 held-out episodes per object (explicit flags still win)")
@@ -437,7 +445,8 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
         objects = args.objects or (None if args.spec_scale else SMALL_OBJECTS)
         budget = Budget(setting=args.setting, skill=args.skill, objects=objects, window=args.window, seed=args.seed,
                         bc_seeds=args.bc_seeds, workers=args.workers, max_steps=args.max_steps,
-                        transition_budget=args.transition_budget, **{**base, **given})
+                        transition_budget=args.transition_budget, action_noise=args.action_noise,
+                        **{**base, **given})
     except ValueError as e:
         parser.error(str(e))
     return budget, Path(args.out)

@@ -25,6 +25,9 @@ def add_generate(sub) -> None:
     p.add_argument("--sim-backend", default="physx_cpu", help="physx_cpu or physx_cuda")
     p.add_argument("--render", default="rasterized", choices=("rasterized", "ray-traced"),
                    help="how the cameras render: SAPIEN's rasterizer, or its ray tracer (needs a ray-tracing GPU)")
+    p.add_argument("--action-noise", type=float, default=0.0,
+                   help="DART noise: std of Gaussian noise on the executed flight commands (normalised units, e.g. "
+                        "0.05); the dataset records the policy's own actions (docs/datasets.md)")
     p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
     p.add_argument("--out", required=True, help="dataset folder (LeRobotDataset root)")
     add_ray_options(p, "shards")
@@ -42,7 +45,7 @@ def _run_generate(args) -> int:
             setting=args.setting, skills=args.skills, episodes=args.episodes, objects=args.objects,
             num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, platform=args.platform,
             controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
-            rendering=args.render,
+            rendering=args.render, action_noise=args.action_noise,
         )
         if spec.rendering == "ray-traced" and args.ray is None:
             from ..envs.rendering import require_ray_tracing

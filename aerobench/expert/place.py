@@ -2,8 +2,9 @@
 
 The object hangs in the jaws, so alignment and descent steer the object (not the tool centre point) onto the goal.
 Release happens only once the support has carried the object for 9 control steps (the task state's set-down time,
-which a policy reads too) and the drone has stopped (spec appendix: the expert's release speeds are a few mm/s); the
-retreat is straight up past the 0.27 m clearance, then the drone hovers still.
+which a policy reads too) and the drone has stopped (spec appendix: the expert's release speeds are a few mm/s);
+the open fingers hold the release point (a position hold), the retreat is straight up past the 0.27 m clearance,
+then the drone hovers still.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ SET_DOWN_STEPS = 3  # control steps of support contact before the drone stops pr
 STOPPED_MPS = 0.008  # "stop before release"
 STOPPED_STEPS = 6  # further control steps of support contact before the release
 OPEN_STEPS = 12
+HOLD_SPEED_MPS = 0.05  # while the fingers open: enough to pull a few mm of drift back, too slow to shove the object
 RETREAT_HEIGHT_M = 0.40  # above the release point: beyond the 0.27 m clearance with margin
 RETREAT_SPEED_MPS = 0.2
 
@@ -85,9 +87,9 @@ class PlaceExpert(SkillExpert):
         set_down_steps = info["set_down_steps"]
         self.goto(P.STOP, set_down_steps == 0, P.DESCEND)  # the support let go: press again
         self.goto(P.DESCEND, set_down_steps >= SET_DOWN_STEPS, P.STOP)
-        self.goto(P.STOP, (speed < STOPPED_MPS) & (set_down_steps >= SET_DOWN_STEPS + STOPPED_STEPS), P.OPEN)
-        started = self.goto(P.OPEN, self.timer >= OPEN_STEPS, P.RETREAT)
-        self.release_point = torch.where(started[:, None], tcp, self.release_point)
+        opened = self.goto(P.STOP, (speed < STOPPED_MPS) & (set_down_steps >= SET_DOWN_STEPS + STOPPED_STEPS), P.OPEN)
+        self.release_point = torch.where(opened[:, None], tcp, self.release_point)
+        self.goto(P.OPEN, self.timer >= OPEN_STEPS, P.RETREAT)
         risen = tcp[:, 2] >= self.release_point[:, 2] + RETREAT_HEIGHT_M - 0.02
         self.goto(P.RETREAT, risen, P.HOVER)
         self.advance_timer()
@@ -102,8 +104,10 @@ class PlaceExpert(SkillExpert):
         on_surface = (phase == P.DESCEND) & ((obj[:, 2] - goal[:, 2]) < 0.004)
         press = tcp - torch.tensor([0.0, 0.0, 1.0], device=self.device)  # far below: max_speed sets the push
         target = torch.where(on_surface[:, None], press, target)
-        hold = torch.where((phase == P.STOP)[:, None] | (phase == P.OPEN)[:, None], tcp.detach(), target)
-        target = torch.where((phase == P.STOP)[:, None] | (phase == P.OPEN)[:, None], hold, target)
+        target = torch.where((phase == P.STOP)[:, None], tcp, target)  # zero velocity while the jaws still hold it
+        # Open fingers clear a wide object by a few mm a side (a 102 mm can in the 110 mm jaws): from the release on,
+        # hold the release point (a position hold that pulls a drift back) until the retreat lifts straight up.
+        target = torch.where((phase == P.OPEN)[:, None], self.release_point, target)
         retreat = self.release_point + torch.tensor([0.0, 0.0, RETREAT_HEIGHT_M], device=self.device)
         target = torch.where((phase == P.RETREAT)[:, None] | (phase == P.HOVER)[:, None], retreat, target)
         near = (obj[:, 2] - goal[:, 2]) < TOUCH_ZONE_M
@@ -111,7 +115,8 @@ class PlaceExpert(SkillExpert):
         max_speed = torch.where(phase == P.ALIGN, torch.full_like(max_speed, 0.15), max_speed)
         max_speed = torch.where(phase == P.DESCEND, torch.where(near, TOUCH_SPEED_MPS, DESCEND_SPEED_MPS), max_speed)
         max_speed = torch.where(on_surface, torch.full_like(max_speed, PRESS_SPEED_MPS), max_speed)
-        max_speed = torch.where((phase == P.STOP) | (phase == P.OPEN), torch.zeros_like(max_speed), max_speed)
+        max_speed = torch.where(phase == P.STOP, torch.zeros_like(max_speed), max_speed)
+        max_speed = torch.where(phase == P.OPEN, torch.full_like(max_speed, HOLD_SPEED_MPS), max_speed)
         max_speed = torch.where(phase == P.RETREAT, torch.full_like(max_speed, RETREAT_SPEED_MPS), max_speed)
         max_speed = torch.where(phase == P.HOVER, torch.full_like(max_speed, 0.1), max_speed)
         released = (phase == P.OPEN) | (phase == P.RETREAT) | (phase == P.HOVER)

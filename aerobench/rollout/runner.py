@@ -26,6 +26,7 @@ from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
 from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, mark_grasp_lost, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
+from .noise import ActionNoise, check_action_noise
 
 THIRD_PERSON = "third_person"
 SEED_STRIDE = 1_000_003  # episode seed = base seed * stride + episode index: distinct streams per base seed
@@ -54,6 +55,7 @@ class RolloutSpec:
     physx_solver: str = field(default_factory=default_physx_solver)  # "pgs" (default) or "tgs" (rows before 2026-11-25)
     rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
+    action_noise: float = 0.0  # DART: executed flight commands get N(0, sigma^2); the recorded action stays clean
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -78,6 +80,7 @@ class RolloutSpec:
                              f"which must fit in 32 bits), got {self.seed}")
         object.__setattr__(self, "physx_solver", check_physx_solver(self.physx_solver))
         object.__setattr__(self, "rendering", check_rendering(self.rendering))
+        object.__setattr__(self, "action_noise", check_action_noise(self.action_noise))
         if self.rendering != DEFAULT_RENDERING and not self.record_cameras:
             raise ValueError(f"{self.rendering} rendering is for the cameras; drop --no-cameras or the --render option")
         i, k = self.shard
@@ -105,6 +108,7 @@ class RolloutSpec:
             # named when it is not TGS, the solver of every run before the key existed: those stay resumable (as TGS)
             **({"physx_solver": self.physx_solver} if self.physx_solver != "tgs" else {}),
             **({"rendering": self.rendering} if self.rendering != DEFAULT_RENDERING else {}),
+            **({"action_noise": self.action_noise} if self.action_noise else {}),
         }
 
 
@@ -250,14 +254,15 @@ class RolloutRunner:
         signals: list[dict] = []
         tasks = [base.get_instruction(i) for i in range(n)]
         third_person = any(p.index < self.spec.third_person_episodes for p in plans)
+        perturb = ActionNoise(self.spec.action_noise, seed=seeds[0], device=base.device)
         for _ in range(max_steps):
             if not active.any():
                 break
             action = policy.act(obs)
             if not torch.isfinite(action).all():
                 raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")
-            frame = self._frame(obs, action, base, policy, third_person)
-            obs, _, terminated, truncated, info = env.step(action)
+            frame = self._frame(obs, action, base, policy, third_person)  # records the policy's own action
+            obs, _, terminated, truncated, info = env.step(perturb(action))
             frames.append(frame)
             signals.append({k: v.detach().cpu() for k, v in info.items() if torch.is_tensor(v) and v.shape[:1] == (n,)})
             live = active.clone()

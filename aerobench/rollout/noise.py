@@ -1,0 +1,48 @@
+"""Noise injection while collecting demonstrations (DART: Laskey et al., 2017, "DART: Noise Injection for Robust
+Imitation Learning").
+
+A demonstrator that never errs records only the states on its own path; a cloned policy that drifts a few mm off it
+meets states the data never showed and has no correction to copy. With `action_noise` sigma the runner executes the
+policy's action plus Gaussian noise on the flight dimensions (normalised velocity and yaw-rate commands), while the
+dataset records the policy's own action: the demonstrations then visit perturbed states *with* the expert's
+correcting labels. The gripper and arm dimensions are never perturbed. Measured use: the Place release, where the
+open fingers clear a 102 mm can by 4 mm a side (docs/experiments.md, "What fails: the master chef can's release").
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+FLIGHT_ACTION_DIMS = 4  # vx, vy, vz, yaw rate: the first values of every platform's action (`Platform.action_dim`)
+MAX_ACTION_NOISE = 0.5  # beyond this the "demonstrations" are mostly noise
+
+
+def check_action_noise(sigma: float) -> float:
+    """`sigma` as a float, or a one-line ValueError."""
+    if not (isinstance(sigma, int | float) and math.isfinite(sigma) and 0.0 <= sigma <= MAX_ACTION_NOISE):
+        raise ValueError(f"--action-noise must be a standard deviation between 0 and {MAX_ACTION_NOISE} (normalised "
+                         f"action units, e.g. 0.05), got {sigma!r}")
+    return float(sigma)
+
+
+class ActionNoise:
+    """Adds N(0, sigma^2) to the flight dimensions of a batch of actions `(N, A)`, from a generator seeded per
+    batch of episodes (the same command draws the same noise); the result stays within the action bounds [-1, 1]."""
+
+    def __init__(self, sigma: float, seed: int, device: torch.device | str = "cpu"):
+        self.sigma = check_action_noise(sigma)
+        self.generator = torch.Generator(device="cpu").manual_seed(int(seed))
+        self.device = device
+
+    def __call__(self, action: torch.Tensor) -> torch.Tensor:
+        if self.sigma == 0.0:
+            return action
+        noise = torch.randn((action.shape[0], FLIGHT_ACTION_DIMS), generator=self.generator) * self.sigma
+        executed = action.clone()
+        executed[:, :FLIGHT_ACTION_DIMS] = (executed[:, :FLIGHT_ACTION_DIMS] + noise.to(action.device)).clamp(-1.0, 1.0)
+        return executed
+
+
+__all__ = ["ActionNoise", "FLIGHT_ACTION_DIMS", "check_action_noise"]
