@@ -3,8 +3,8 @@
 The object hangs in the jaws, so alignment and descent steer the object (not the tool centre point) onto the goal.
 Release happens only once the support has carried the object for 9 control steps (the task state's set-down time,
 which a policy reads too) and the drone has stopped (spec appendix: the expert's release speeds are a few mm/s);
-the open fingers hold the release point (a position hold), the retreat is straight up past the 0.27 m clearance,
-then the drone hovers still.
+while the fingers open the drone holds the release point (a position hold); the retreat is straight up past the
+0.27 m clearance, then the drone hovers still.
 """
 
 from __future__ import annotations

@@ -31,10 +31,9 @@ class ActionNoise:
     """Adds N(0, sigma^2) to the flight dimensions of a batch of actions `(N, A)`, from a generator seeded per
     batch of episodes (the same command draws the same noise); the result stays within the action bounds [-1, 1]."""
 
-    def __init__(self, sigma: float, seed: int, device: torch.device | str = "cpu"):
+    def __init__(self, sigma: float, seed: int):
         self.sigma = check_action_noise(sigma)
-        self.generator = torch.Generator(device="cpu").manual_seed(int(seed))
-        self.device = device
+        self.generator = torch.Generator(device="cpu").manual_seed(int(seed))  # CPU draws: the same noise on any device
 
     def __call__(self, action: torch.Tensor) -> torch.Tensor:
         if self.sigma == 0.0:

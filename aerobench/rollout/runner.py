@@ -254,7 +254,7 @@ class RolloutRunner:
         signals: list[dict] = []
         tasks = [base.get_instruction(i) for i in range(n)]
         third_person = any(p.index < self.spec.third_person_episodes for p in plans)
-        perturb = ActionNoise(self.spec.action_noise, seed=seeds[0], device=base.device)
+        perturb = ActionNoise(self.spec.action_noise, seed=seeds[0])
         for _ in range(max_steps):
             if not active.any():
                 break
