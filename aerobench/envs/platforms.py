@@ -24,6 +24,7 @@ CONTROL_HZ = 20  # "while the policy runs at 20 Hz"
 PHYSICS_DT = 1.0 / PHYSICS_HZ
 MAX_SPEED_MPS = 0.6  # "world-frame linear velocity and yaw-rate commands, bounded by 0.6 m/s and 1 rad/s"
 MAX_YAW_RATE_RPS = 1.0
+FLIGHT_ACTION_DIMS = 4  # every action starts with vx, vy, vz (x MAX_SPEED_MPS) and yaw rate (x MAX_YAW_RATE_RPS)
 GRAVITY = 9.81  # m/s^2, SAPIEN's default scene gravity, so the controller's g equals the simulated one
 
 
@@ -174,7 +175,7 @@ class PlatformSpec:
     @property
     def action_dim(self) -> int:
         """4 flight (+ 3 arm) + 1 gripper."""
-        return 4 + (len(self.arm.joints) if self.arm else 0) + 1
+        return FLIGHT_ACTION_DIMS + (len(self.arm.joints) if self.arm else 0) + 1
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -283,6 +284,7 @@ __all__ = [
     "GRIPPER_PLATFORM",
     "MAX_SPEED_MPS",
     "MAX_YAW_RATE_RPS",
+    "FLIGHT_ACTION_DIMS",
     "PHYSICS_DT",
     "PHYSICS_HZ",
     "PLATFORMS",

@@ -15,7 +15,8 @@ import math
 
 import torch
 
-FLIGHT_ACTION_DIMS = 4  # vx, vy, vz, yaw rate: the first values of every platform's action (`Platform.action_dim`)
+from ..envs.platforms import FLIGHT_ACTION_DIMS
+
 MAX_ACTION_NOISE = 0.5  # beyond this the "demonstrations" are mostly noise
 
 
