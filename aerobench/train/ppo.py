@@ -388,8 +388,7 @@ def _train_ppo(config: PPOConfig) -> Path:
         torch.set_rng_state(train_state["torch_rng"])
 
     cameras, image_size = tuple(model["cameras"]), model["image_size"]
-    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.platform.name,
-            "init_bc": config.init_bc}  # as given: a committed checkpoint names no machine path
+    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.platform.name}
 
     def inputs_of(obs, keep: bool = True) -> dict[str, torch.Tensor]:
         """The actor's raw inputs; `keep`: this is the step's observation (it enters the history)."""

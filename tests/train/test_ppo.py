@@ -141,7 +141,7 @@ def test_ppo_from_bc_keeps_the_actor_during_critic_warmup_and_evaluates(bc_check
     critic_lr = read_scalars(run, "losses/value_loss")
     assert len(critic_lr) == 1 and math.isfinite(critic_lr[0][1])
     config = json.loads((ckpt / "config.json").read_text())
-    assert config["algorithm"] == "ppo" and config["init_bc"] == str(bc_checkpoint)
+    assert config["algorithm"] == "ppo" and config["train"]["init_bc"] == str(bc_checkpoint)  # as given: no machine path
 
     out = tmp_path / "eval"
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "OMP_NUM_THREADS": "1"}
