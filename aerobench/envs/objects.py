@@ -64,6 +64,13 @@ class ObjectSpec:
         return self.size_m[0] / 2
 
     @property
+    def half_extent_m(self) -> tuple[float, float]:
+        """Half its horizontal extent along its own x (the closing axis) and y."""
+        if self.shape == "box":
+            return self.size_m[0] / 2, self.size_m[1] / 2
+        return self.size_m[0] / 2, self.size_m[0] / 2
+
+    @property
     def grasp_width_m(self) -> float:
         """Width between the pads when grasped: diameter, the box's narrow horizontal side, or the bowl's rim wall."""
         if self.shape == "cylinder":

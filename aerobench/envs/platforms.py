@@ -128,6 +128,11 @@ class ArmSpec:
     # Working pose: upper arm pitched up 0.12 rad, forearm level. Positive pitch turns the arm downwards (about +y),
     # so "up 0.12 rad" is -0.12 at the shoulder and +0.12 at the elbow.
     working_pose_rad: tuple[float, float, float] = (-0.12, 0.12, 0.0)
+    # Carry pose (not in the spec; the expert's choice for flying between stages): upper arm straight down, forearm
+    # level. The grasp point is then 0.26 m ahead of and 0.27 m below the centre, within the rotor disks' outline
+    # (0.32 m), so a held object travels under the drone as on the gripper platform, and the footprint that must fit
+    # through doorways is the airframe's at any heading instead of an arm 0.47 m long at one heading.
+    carry_pose_rad: tuple[float, float, float] = (1.57, -1.57, 0.0)
     # Spec appendix "Modelling assumptions": arm link masses 0.17 kg in total plus an 82 g shoulder servo; the split
     # between the three links is nominal (elbow and wrist servos ride on the upper arm and forearm).
     upper_arm_mass_kg: float = 0.08

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import torch
 
+from ..envs.skills.pick import ENCLOSED_KINDS
 from .nav import NavExpert
 from .pick import PickExpert
 from .place import PlaceExpert
 
 
-def _expert_for(env, evaluator, carrying: bool, after_stage: bool):
+def _expert_for(env, evaluator, carrying: bool, after_stage: bool, following=None, previous=None):
     skill = evaluator.skill
     if skill == "pick":
         return PickExpert(env, evaluator, after_stage=after_stage)
@@ -23,10 +24,12 @@ def _expert_for(env, evaluator, carrying: bool, after_stage: bool):
     if skill == "nav":
         # a held object hangs its grasp height below the tool centre point
         depth = float(env.target_grasp_point[:, 2].max()) if carrying and env.target is not None else 0.0
-        return NavExpert(env, evaluator, carrying_depth=depth)
+        after_pick = previous if previous is not None and previous.skill == "pick" else None
+        return NavExpert(env, evaluator, carrying_depth=depth, after_pick=after_pick)
     from .articulation import ArticulationExpert
 
-    return ArticulationExpert(env, evaluator)
+    reach_in_next = following is not None and following.skill == "pick" and bool(set(following.kinds) & set(ENCLOSED_KINDS))
+    return ArticulationExpert(env, evaluator, reach_in_next=reach_in_next)
 
 
 class ExpertController:
@@ -35,8 +38,12 @@ class ExpertController:
     def __init__(self, env):
         self.env = env
         carrying, self.experts = False, []
-        for evaluator in env.evaluators:
-            self.experts.append(_expert_for(env, evaluator, carrying, after_stage=bool(self.experts)))
+        for k, evaluator in enumerate(env.evaluators):
+            following = env.evaluators[k + 1] if k + 1 < len(env.evaluators) else None
+            previous = env.evaluators[k - 1] if k else None
+            self.experts.append(
+                _expert_for(env, evaluator, carrying, after_stage=bool(self.experts), following=following, previous=previous)
+            )
             carrying = evaluator.skill == "pick" or (carrying and evaluator.skill != "place")
         self.stage = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
 

@@ -28,6 +28,10 @@ PINCH_CONFIRM_STEPS = 3
 # integrator up to the tilt that pulls that hard, so a brisk commanded speed gets them moving within seconds.
 DRIVE_SPEED_MPS = {"fridge": 0.25, "drawer": 0.3}
 OPEN_MARGIN = 0.06  # drive a little past the spec's threshold, so the goal holds after release
+# Before a pick from inside the fridge the door goes further than the threshold: at 0.95 (1.8 rad, 103 deg) its free
+# end stands 0.16 m beyond the carcass's side, which leaves the pick's route from the handle round the door to the
+# fridge's front the room the rotor disks need (at the threshold's 0.81 the door stands square across that way).
+OPEN_FOR_REACH_IN = 0.95
 EASE_ZONE = 0.15  # progress over which the drive slows down before the goal
 MIN_EASE = 0.3
 HINGE_PULL_ACCEL = 2.7  # m/s^2: 7 N of door friction on the 2.58 kg arm platform
@@ -61,8 +65,9 @@ class ArticulationPhase(IntEnum):
 
 
 class ArticulationExpert(SkillExpert):
-    def __init__(self, env, evaluator):
+    def __init__(self, env, evaluator, reach_in_next: bool = False):
         super().__init__(env, evaluator)
+        self.reach_in_next = reach_in_next
         self.route = RouteFollower(self.n, self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
         self.release_point = torch.zeros(self.n, 3, device=self.device)
@@ -124,8 +129,9 @@ class ArticulationExpert(SkillExpert):
         progress = info["articulation_progress"]
         pinched = info["is_handle_pinched"]
         opening = ev.skill == "open"
-        threshold = ev.open_threshold[ev.fixture_id]
-        goal_reached = (progress >= (threshold + OPEN_MARGIN).clamp(max=0.99)) if opening else (progress <= CLOSED_TARGET)
+        open_goal = (ev.open_threshold[ev.fixture_id] + OPEN_MARGIN).clamp(max=0.99)
+        open_goal = open_goal.clamp(min=OPEN_FOR_REACH_IN) if self.reach_in_next else open_goal
+        goal_reached = (progress >= open_goal) if opening else (progress <= CLOSED_TARGET)
 
         waypoint, last = self.route.target(state.position)
         pre_tcp = point + STANDOFF_M * normal
@@ -158,7 +164,7 @@ class ArticulationExpert(SkillExpert):
         max_speed = torch.where((phase == P.APPROACH) & last, torch.full_like(max_speed, 0.15), max_speed)
         max_speed = torch.where((phase == P.INSERT) | (phase == P.PINCH), torch.full_like(max_speed, INSERT_SPEED_MPS), max_speed)
         # ease off over the last 15% so the pull (and the tilt it needs) is small when the handle is let go
-        remaining = ((threshold + OPEN_MARGIN - progress) if opening else (progress - CLOSED_TARGET)) / EASE_ZONE
+        remaining = ((open_goal - progress) if opening else (progress - CLOSED_TARGET)) / EASE_ZONE
         drive_speed = drive_speed * remaining.clamp(MIN_EASE, 1.0)
         max_speed = torch.where(phase == P.DRIVE, drive_speed, max_speed)
         max_speed = torch.where(phase == P.RELEASE, torch.zeros_like(max_speed), max_speed)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 
+import numpy as np
 import torch
 
 from .base import SkillExpert
+from .motion import wrap_angle
 from .planner import planner_for
 from .route import RouteFollower
 
@@ -17,6 +20,16 @@ ARRIVE_ZONE_M = 0.4
 # drone 6 deg within 0.15 s and tore rim-pinched bowls out of the jaws at the start of 6 of 7 failed transports
 # (docs/expert.md). 0.5 m/s^2 reaches cruise speed in 1 s.
 CARRY_ACCEL_MPS2 = 0.5
+# After a pick from inside a fixture (a fridge shelf) the arm and the object are still inside it: the route starts by
+# backing straight out along the heading, this far, before the planner's route (which turns nowhere inside).
+BACK_OUT_M = 0.45
+# The heading is held while flying (the planner checks the footprint at it). When no route exists at the current
+# heading (an arm 0.47 m long pointing into a fridge), the expert turns in place to the first of these that has one:
+# towards the goal, then the room axes; the turn itself must keep the footprint clear of the scene.
+TURN_STEP_RAD = math.radians(15.0)
+TURN_MIN_CLEARANCE_M = 0.03
+TURN_TOLERANCE_RAD = math.radians(8.0)
+ARM_FOLDED_RAD = 0.15  # every arm joint this close to the carry pose: folded
 
 
 class NavPhase(IntEnum):
@@ -25,36 +38,82 @@ class NavPhase(IntEnum):
 
 
 class NavExpert(SkillExpert):
-    """`carrying_depth`: how far a held object hangs below the gripper (for the planner's clearance)."""
+    """`carrying_depth`: how far a held object hangs below the gripper (for the planner's clearance); `after_pick`:
+    the evaluator of the pick this stage follows (its `enclosed` envs back out first)."""
 
-    def __init__(self, env, evaluator, carrying_depth: float = 0.0):
+    def __init__(self, env, evaluator, carrying_depth: float = 0.0, after_pick=None):
         super().__init__(env, evaluator)
+        self.after_pick = after_pick
         self.route = RouteFollower(self.n, self.device)
         self.carrying_depth = carrying_depth
-        self.heading = torch.zeros(self.n, device=self.device)
+        self.heading = torch.zeros(self.n, device=self.device)  # held while flying the route
+        self.start_yaw = torch.zeros(self.n, device=self.device)  # held while backing out
+        self.turn_at = torch.zeros(self.n, 3, device=self.device)  # where the route starts (after backing out)
+        self.backing = torch.zeros(self.n, dtype=torch.bool, device=self.device)
+        self.turned = torch.ones(self.n, dtype=torch.bool, device=self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
+        # the arm platform flies with its arm folded (`ArmSpec.carry_pose_rad`); it folds where the route starts
+        self.carry_pose = torch.tensor(env.platform.arm.carry_pose_rad, device=self.device) if self.has_arm else None
 
     def reset(self, env_idx):
         super().reset(env_idx)
-        position = self.state().position
-        self.heading[env_idx] = self.state().yaw[env_idx]
-        self.velocity_command[env_idx] = self.state().velocity[env_idx]  # a ramp starts from how the drone moves now
+        state = self.state()
+        self.start_yaw[env_idx] = state.yaw[env_idx]
+        self.velocity_command[env_idx] = state.velocity[env_idx]  # a ramp starts from how the drone moves now
+        yaw = state.yaw
+        back = BACK_OUT_M * torch.stack([torch.cos(yaw), torch.sin(yaw), torch.zeros_like(yaw)], -1)
         for i in env_idx.tolist():
             goal = self.evaluator.target[i].cpu().numpy()
+            backing = self.after_pick is not None and bool(self.after_pick.enclosed[i])
+            start = state.position[i] - back[i] if backing else state.position[i]
             # the heading is held while flying, so the planner checks the drone's real footprint at it (the
             # any-heading disk misses doorways and starts beside walls, leaving no route)
-            planner = planner_for(self.env, i, self.carrying_depth, heading=float(self.heading[i]))
-            route = planner.plan(position[i].cpu().numpy(), goal)
+            heading, route = self._plan(i, start.cpu().numpy(), goal, float(yaw[i]))
             self.planned[i] = route is not None
-            self.route.set(i, route if route is not None else [goal])
+            self.heading[i], self.turn_at[i], self.backing[i] = heading, start, backing
+            self.turned[i] = heading == float(yaw[i])
+            self.route.set(i, ([start.cpu().numpy()] if backing else []) + list(route if route is not None else [goal]))
+
+    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, heading: float) -> tuple[float, list | None]:
+        """The current heading and its route, or else the first candidate heading with a route that the drone can
+        also turn to in place at `start`."""
+        toward = math.atan2(goal[1] - start[1], goal[0] - start[0])
+        candidates = [heading, toward] + [heading + k * math.pi / 2 for k in (1, -1, 2)]
+        for h in candidates:
+            route = self._planner(i, h).plan(start, goal)
+            if route is not None and (h == heading or self._can_turn(i, start, heading, h)):
+                return h, route
+        return heading, None
+
+    def _planner(self, i: int, heading: float):
+        return planner_for(self.env, i, self.carrying_depth, heading=heading, arm_q=self.carry_pose)
+
+    def _can_turn(self, i: int, at: np.ndarray, a: float, b: float) -> bool:
+        delta = math.remainder(b - a, 2 * math.pi)
+        steps = max(1, int(abs(delta) / TURN_STEP_RAD) + 1)
+        return all(
+            self._planner(i, a + delta * k / steps).clearance(at) > TURN_MIN_CLEARANCE_M
+            for k in range(1, steps + 1)
+        )
 
     def act(self):
         state = self.state()
         target, last = self.route.target(state.position)
+        # backing out (first waypoint) keeps the pick's heading; then the turn in place; then the route
+        backing = self.backing & (self.route.index == 0)
+        self.turned |= ~backing & (wrap_angle(self.heading - state.yaw).abs() < TURN_TOLERANCE_RAD)
+        turning = ~backing & ~self.turned
+        target = torch.where(turning[:, None], self.turn_at, target)
         distance = torch.linalg.norm(target - state.position, dim=-1)
-        self.goto(NavPhase.FLY, last & (distance < 0.03), NavPhase.SETTLE)
+        self.goto(NavPhase.FLY, last & ~turning & (distance < 0.03), NavPhase.SETTLE)
         self.advance_timer()
         speed = torch.where(last & (distance < ARRIVE_ZONE_M), ARRIVE_SPEED_MPS, CRUISE_SPEED_MPS)
+        yaw = torch.where(backing, self.start_yaw, self.heading)
         gripper = torch.full((self.n,), -1.0 if self.carrying_depth > 0 else 1.0, device=self.device)
-        return self.action(target, speed, self.heading, gripper, tracked=state.position,
+        arm = None
+        if self.has_arm:  # folded once backed out (a hover, so the swing of the held object is over before flying)
+            arm = torch.where(backing[:, None], self.arm_rest.expand(self.n, 3), self.carry_pose.expand(self.n, 3))
+            folded = (self.env.agent.arm_qpos() - self.carry_pose).abs().max(-1).values < ARM_FOLDED_RAD
+            target = torch.where((~backing & ~folded)[:, None], self.turn_at, target)
+        return self.action(target, speed, yaw, gripper, tracked=state.position, arm_target=arm,
                            max_accel=CARRY_ACCEL_MPS2 if self.carrying_depth > 0 else None)

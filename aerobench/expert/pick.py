@@ -33,15 +33,26 @@ FINAL_ZONE_M = 0.05
 AT_GRASP_M = 0.008
 LIFT_SPEED_MPS = 0.15  # spec appendix: the expert's lift commands 0.15 m/s
 LIFT_HEIGHT_M = 0.20
+LIFT_HEADROOM_M = 0.04  # under a board above the support (a fridge shelf) the lift stops this far below it
 GRASP_CONFIRM_STEPS = 4
 CLOSE_TIMEOUT_STEPS = 40
 ABOVE_OBJECT_M = 0.10  # pre-grasp: the finger tips this far above the object's top (gripper platform)
 SIDE_STANDOFF_M = 0.15  # pre-grasp: the tool centre point this far back from the grasp point (arm platform)
 MAX_RETRIES = 2
+# Reaching into an enclosure (a fridge shelf) the arm's horizontal fingers go in above the grasp and come down onto it
+# once over it: 2 cm up clears the shelf board's front edge (the pads reach 1.5 cm below the tool centre point); a
+# bowl's rim grasp goes in over the rim (the near wall stands across the way in) and drops onto the wall.
+ENTER_ABOVE_M = 0.02
+ENTER_ABOVE_RIM_M = 0.03
+OVER_GRASP_M = 0.01
+ENCLOSED_LIFT_BACK_M = 0.06
+ENCLOSED_OVERREACH_M = 0.01  # ... and never deeper than the grasp planned at the start (a pushed object is let go)
 BACK_OFF_M = 0.45  # a pick after another stage first backs this far away, keeping its heading, then turns
 STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point along the grasp heading, the arm
 # still outside whatever holds the object (a fridge shelf): the planner needs the route's end clear of the scene
 ROUTE_SPEED_MPS = 0.3
+TURN_TOLERANCE_RAD = math.radians(8.0)  # after backing off, turn to the grasp heading in place: the planner checks
+# the route at that heading, and an arm 0.47 m long swept through a turn in flight hits what the route passes (a door)
 ROUTE_ARRIVED_M = 0.05
 FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
 
@@ -66,14 +77,18 @@ class PickExpert(SkillExpert):
         self.after_stage = after_stage
         self.route = RouteFollower(self.n, self.device) if after_stage else None
         self.back_yaw = torch.zeros(self.n, device=self.device)  # the heading kept while backing off
+        self.turned = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # turned to the grasp heading after it
         side_room = (env.platform.gripper.max_opening_m - env.target_grasp_width) / 2
         self.align_tolerance = (side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
         self.lift_from = torch.zeros(self.n, 3, device=self.device)
         self.retries = torch.zeros(self.n, dtype=torch.long, device=self.device)
+        self.drawn = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # enclosed: drawn to the front
+        self.deepest = torch.zeros(self.n, device=self.device)  # enclosed: along the heading, the deepest target
 
     def reset(self, env_idx):
         super().reset(env_idx)
         self.retries[env_idx] = 0
+        self.deepest[env_idx] = self._along(self.grasp_point())[env_idx] + ENCLOSED_OVERREACH_M
         if self.after_stage:
             self._plan_route(env_idx)
 
@@ -87,6 +102,7 @@ class PickExpert(SkillExpert):
         staging = self.pre_grasp(self.grasp_point()) - offset - STAGING_M * along
         back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
         self.back_yaw[env_idx] = state.yaw[env_idx]
+        self.turned[env_idx] = False
         for i in env_idx.tolist():
             start, goal = (state.position[i] - back[i]).cpu().numpy(), staging[i].cpu().numpy()
             route = planner_for(self.env, i, heading=float(self.heading[i])).plan(start, goal)
@@ -100,11 +116,25 @@ class PickExpert(SkillExpert):
     def grasp_point(self) -> torch.Tensor:
         return self.evaluator.grasp_target(self.tcp())
 
+    def _forward(self) -> torch.Tensor:
+        return torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
+
+    def _along(self, point: torch.Tensor) -> torch.Tensor:
+        return (point * self._forward()).sum(-1)
+
+    def entry_rise(self, grasp: torch.Tensor) -> torch.Tensor:
+        """`(N,)` how far above the grasp the arm's fingers go into an enclosure (0 elsewhere)."""
+        env = self.env
+        over_rim = env.target.pose.p[:, 2] + env.target_height - grasp[:, 2] + ENTER_ABOVE_RIM_M
+        rise = torch.where(env.target_grasps_rim, over_rim, torch.full_like(over_rim, ENTER_ABOVE_M))
+        return torch.where(self.evaluator.enclosed, rise, torch.zeros_like(rise)) if self.has_arm else torch.zeros_like(rise)
+
     def pre_grasp(self, grasp: torch.Tensor) -> torch.Tensor:
         env = self.env
         if self.has_arm:
-            forward = torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
-            return grasp - SIDE_STANDOFF_M * forward
+            up = torch.zeros_like(grasp)
+            up[:, 2] = self.entry_rise(grasp)
+            return grasp - SIDE_STANDOFF_M * self._forward() + up
         top = env.target.pose.p[:, 2] + env.target_height
         lift = (top - grasp[:, 2]).clamp_min(0.0) + ABOVE_OBJECT_M + 0.02  # finger tips sit 2 cm below the TCP
         return grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
@@ -134,6 +164,7 @@ class PickExpert(SkillExpert):
         confirmed = grasped & (self.timer >= GRASP_CONFIRM_STEPS)
         started_lift = self.goto(P.CLOSE, confirmed, P.LIFT)
         self.lift_from = torch.where(started_lift[:, None], tcp, self.lift_from)
+        self.drawn &= ~started_lift
         failed_close = self.in_phase(P.CLOSE) & (self.timer >= CLOSE_TIMEOUT_STEPS)
         lost = (self.in_phase(P.LIFT) | self.in_phase(P.HOLD)) & ~grasped & (self.timer > GRASP_CONFIRM_STEPS)
         retry = (failed_close | lost) & (self.retries < MAX_RETRIES)
@@ -147,8 +178,24 @@ class PickExpert(SkillExpert):
 
         # commands per phase
         phase = self.phase
+        if self.has_arm:  # into an enclosure: above the grasp until over it, and no deeper than planned
+            rise = self.entry_rise(grasp)
+            away = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > OVER_GRASP_M
+            lifted_grasp = grasp + torch.stack([torch.zeros_like(rise), torch.zeros_like(rise), rise * away], -1)
+            overreach = (self._along(lifted_grasp) - self.deepest).clamp_min(0.0) * self.evaluator.enclosed
+            grasp = lifted_grasp - overreach[:, None] * self._forward()
         target = torch.where((phase == P.APPROACH)[:, None] | (phase == P.ALIGN)[:, None] | (phase == P.REOPEN)[:, None], pre, grasp)
-        lift_target = self.lift_from + torch.tensor([0.0, 0.0, LIFT_HEIGHT_M], device=self.device)
+        headroom = self.evaluator.clear_height() - self.env.target_height - LIFT_HEADROOM_M
+        lift = headroom.clamp(max=LIFT_HEIGHT_M)
+        lift_target = self.lift_from + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+        # Out of an enclosure the object is first drawn towards the front along the shelf, then lifted: the payload
+        # 0.47 m ahead pitches the airframe nose-down as it comes off the shelf (the arm's feedforward covers the
+        # arm's own weight only), and the drift that starts towards the fridge's front exceeds the disks' clearance.
+        drawing = self.evaluator.enclosed & self.has_arm
+        back = ENCLOSED_LIFT_BACK_M * drawing.float()
+        self.drawn |= (phase == P.LIFT) & (self._along(tcp) <= self._along(self.lift_from) - back + 0.01)
+        lift_target = lift_target - back[:, None] * self._forward()
+        lift_target[:, 2] = torch.where(drawing & ~self.drawn, self.lift_from[:, 2], lift_target[:, 2])
         target = torch.where((phase == P.LIFT)[:, None] | (phase == P.HOLD)[:, None], lift_target, target)
         # descend only while centred over the grasp: a drift pauses the descent until it is corrected
         drift = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > self.align_tolerance
@@ -170,6 +217,10 @@ class PickExpert(SkillExpert):
             target = torch.where(routing[:, None], waypoint, target)
             max_speed = torch.where(routing, torch.full_like(max_speed, ROUTE_SPEED_MPS), max_speed)
             tracked = torch.where(routing[:, None], state.position, tcp)
-            yaw = torch.where(routing & (self.route.index == 0), self.back_yaw, yaw)
+            backed_off = self.route.index > 0
+            yaw = torch.where(routing & ~backed_off, self.back_yaw, yaw)
+            self.turned |= backed_off & (wrap_angle(self.heading - state.yaw).abs() < TURN_TOLERANCE_RAD)
+            turning = routing & backed_off & ~self.turned
+            target = torch.where(turning[:, None], self.route.points[:, 0], target)
         return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), yaw, gripper, gain=gain, tracked=tracked)
 

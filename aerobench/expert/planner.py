@@ -25,6 +25,7 @@ from ..envs.scenes.layout import Box
 
 CELL_M = 0.10
 SEGMENT_STEP_M = 0.05
+FINGER_WIDTH_M = 0.015
 CLEARANCE_M = 0.08  # proxy points must stay this far from boxes along a straight segment
 CRUISE_ALTITUDES_M = (1.3, 1.5, 1.7, 1.9, 2.1, 2.4, 2.7, 3.0)  # tried low to high, within the workspace
 SLAB_ABOVE_M = 0.12  # rotor disks are 0.06 m above the centre, plus margin
@@ -224,24 +225,34 @@ def planner_for(
     boxes = boxes[boxes[:, 7] > 0.5][:, :7].astype(np.float64)
     platform = env.platform
     reach = platform.rotors.arm_m * math.sqrt(2) + platform.rotors.disk_radius_m
+    below = -platform.grasp_point_m[2] + 0.03 + carrying_depth
+    arm_points, hang_at = [], np.zeros(2)  # the held object hangs under the grasp point
     if platform.arm is not None:
-        reach = max(reach, platform.grasp_point_m[0] + 0.05)
-    below = (0.05 if platform.arm is not None else -platform.grasp_point_m[2] + 0.03) + carrying_depth
+        from ..envs.control.arm import arm_point_positions_body
+
+        q = torch.tensor([platform.arm.working_pose_rad]) if arm_q is None else arm_q.reshape(1, 3).cpu().float()
+        fk = {k: v[0].numpy().astype(np.float64) for k, v in arm_point_positions_body(q, platform.arm).items()}
+        grasp = fk["grasp"]
+        # the open fingers either side of the grasp point (their pads 0-110 mm apart, plus the fingers' width)
+        side = platform.gripper.max_opening_m / 2 + FINGER_WIDTH_M
+        arm_points = [fk[k] for k in ("shoulder", "elbow", "wrist")] + [grasp] + [
+            grasp + np.array([dx, dy, 0.0]) for dx in (-0.04, 0.02) for dy in (-side, side)
+        ]
+        reach = max(reach, float(np.hypot(grasp[0], grasp[1])) + 0.05)
+        below = max(0.05, -grasp[2] + 0.03) + carrying_depth
+        hang_at = grasp[:2]
     footprint = None
     if heading is not None:
-        pts = [p for p in env.proxy_points.cpu().numpy()]
-        if platform.arm is not None:
-            from ..envs.control.arm import arm_point_positions_body
-
-            q = torch.tensor([platform.arm.working_pose_rad]) if arm_q is None else arm_q.reshape(1, 3).cpu()
-            fk = arm_point_positions_body(q, platform.arm)
-            pts += [fk[k][0].numpy() for k in ("shoulder", "elbow", "wrist")]
+        pts = [p for p in env.proxy_points.cpu().numpy()] + arm_points
         c, s = math.cos(heading), math.sin(heading)
         rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-        # a held object is wider than the bare gripper: its footprint radius rings the hanging column
-        hang = max(HANG_RADIUS_M, float(env.target_radius[env_index])) if carrying_depth > 0 else HANG_RADIUS_M
-        hanging = [(0.0, 0.0, -below)] + [(hang * math.cos(a), hang * math.sin(a), -below) for a in (0, 1.57, 3.14, 4.71)]
-        footprint = np.concatenate([np.asarray(pts) @ rot.T, np.asarray(hanging)])
+        footprint = np.asarray(pts, dtype=np.float64) @ rot.T
+        if platform.arm is None or carrying_depth > 0:  # the arm's empty fingers are in `arm_points` already
+            # a held object is wider than the bare gripper: its footprint radius rings the hanging column
+            hang = max(HANG_RADIUS_M, float(env.target_radius[env_index])) if carrying_depth > 0 else HANG_RADIUS_M
+            cx, cy = rot[:2, :2] @ hang_at
+            ring = [(cx, cy, -below)] + [(cx + hang * math.cos(a), cy + hang * math.sin(a), -below) for a in (0, 1.57, 3.14, 4.71)]
+            footprint = np.concatenate([footprint, np.asarray(ring)])
     return RoutePlanner(
         boxes, env.workspace_lo[env_index].cpu().numpy(), env.workspace_hi[env_index].cpu().numpy(), reach, below, footprint
     )

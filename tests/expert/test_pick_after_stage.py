@@ -1,14 +1,20 @@
 """A pick that follows another chain stage backs away from where that stage left the drone, then flies a planned route
-to a staging point in front of the pre-grasp point (docs/expert.md, LongHorizonRearrangement)."""
+to a staging point in front of the pre-grasp point; the fridge is opened wider before a pick from its shelf, and the
+transport after it backs out and folds the arm (docs/expert.md, LongHorizonRearrangement)."""
 
 import math
 
 import gymnasium as gym
+import numpy as np
 import torch
 
 import aerobench.envs  # noqa: F401
+from aerobench.envs.scenes import articulated
 from aerobench.expert import ExpertController
+from aerobench.expert.articulation import OPEN_FOR_REACH_IN, ArticulationExpert
+from aerobench.expert.nav import BACK_OUT_M, NavExpert
 from aerobench.expert.pick import BACK_OFF_M, STAGING_M, PickExpert, PickPhase
+from aerobench.expert.planner import planner_for
 
 ENV0 = torch.tensor([0])
 
@@ -38,4 +44,37 @@ def test_a_pick_after_opening_the_fridge_backs_off_then_stages_in_front_of_it():
                                    math.sin(turn) * tcp_body[0] + math.cos(turn) * tcp_body[1], tcp_body[2]])
     pre = pick.pre_grasp(pick.grasp_point())[0]
     assert torch.allclose(waypoints[-1] + tcp_at_heading + STAGING_M * along, pre, atol=1e-4)
+    env.close()
+
+
+def test_the_fridge_opens_wider_before_a_pick_from_its_shelf_and_the_drawer_does_not():
+    for chain, wide in (("open_pick_nav_place", True), ("open_pick_nav_place_close", False)):
+        env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement", chain=chain)
+        env.reset(seed=20000060, options={"reconfigure": True, "objects": ["sugar_box"]})
+        opener = ExpertController(env.unwrapped).experts[0]
+        assert isinstance(opener, ArticulationExpert) and opener.reach_in_next is wide, chain
+        env.close()
+    assert OPEN_FOR_REACH_IN > articulated.get_fixture_spec("fridge").open_threshold
+
+
+def test_the_transport_after_a_fridge_pick_backs_out_then_flies_with_the_arm_folded():
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
+                   chain="open_pick_nav_place")
+    env.reset(seed=20000061, options={"reconfigure": True, "objects": ["sugar_box"]})
+    base = env.unwrapped
+    nav = ExpertController(base).experts[2]
+    assert isinstance(nav, NavExpert) and nav.after_pick is base.evaluators[1] and bool(base.evaluators[1].enclosed[0])
+    state = base.agent.airframe_state()
+    nav.reset(ENV0)
+    yaw = float(state.yaw[0])
+    backed = nav.route.points[0, 0] - state.position[0]
+    assert torch.allclose(backed, -BACK_OUT_M * torch.tensor([math.cos(yaw), math.sin(yaw), 0.0]), atol=1e-5)
+    assert bool(nav.backing[0])
+    # folded, the arm and the fingers stay within the rotor disks' outline (plus the fingers' half opening);
+    # at the working pose they reach 0.47 m ahead
+    disks = base.platform.rotors.arm_m * math.sqrt(2) + base.platform.rotors.disk_radius_m
+    folded = planner_for(base, 0, heading=0.0, arm_q=nav.carry_pose).footprint
+    working = planner_for(base, 0, heading=0.0).footprint
+    assert np.linalg.norm(folded[:, :2], axis=-1).max() < disks + 0.08
+    assert np.linalg.norm(working[:, :2], axis=-1).max() > 0.5
     env.close()

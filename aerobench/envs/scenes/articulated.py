@@ -119,6 +119,7 @@ FRIDGE_DOOR_THICKNESS_M = 0.05
 FRIDGE_HEIGHT_M = 1.80
 FRIDGE_WALL_M = 0.04
 FRIDGE_SHELF_TOPS_M = (0.50, 0.90, 1.30)  # interior boards; their top faces are the "fridge_shelf" supports
+FRIDGE_SHELF_SETBACK_M = 0.02  # the boards' front edges stand this far behind the carcass's front
 FRIDGE_SHELF_NAMES = ("the fridge's bottom shelf", "the fridge's middle shelf", "the fridge's top shelf")
 FRIDGE_DOOR_MAX_RAD = 1.9
 # Spec: a vertical bar 50 mm wide parallel to the closed door face, for a horizontal pinch. The bar stands on two
@@ -143,7 +144,7 @@ def _fridge_spec() -> FixtureSpec:
         _part("bottom", body, (-d + wall, -w + wall, 0.0), (0.0, w - wall, 0.12), c),
     ]
     for i, top in enumerate(FRIDGE_SHELF_TOPS_M):
-        parts.append(_part(f"shelf_{i}", body, (-d + wall, -w + wall, top - 0.02), (-0.02, w - wall, top), (0.8, 0.85, 0.88)))
+        parts.append(_part(f"shelf_{i}", body, (-d + wall, -w + wall, top - 0.02), (-FRIDGE_SHELF_SETBACK_M, w - wall, top), (0.8, 0.85, 0.88)))
     y_bar = -w + FRIDGE_HANDLE_EDGE_INSET_M
     x0 = t + FRIDGE_HANDLE_GAP_M
     x1 = x0 + FRIDGE_HANDLE_DEPTH_M
@@ -280,11 +281,14 @@ def fixture_boxes(fixture: ArticulatedFixture, q: float) -> tuple[Box, ...]:
     return tuple(boxes)
 
 
+SUPPORT_EDGE_MARGIN_M = 0.05
+
+
 def fixture_supports(fixture: ArticulatedFixture, q: float | None = None) -> tuple[Support, ...]:
     """Fridge: its interior shelf boards (kind "fridge_shelf"). Drawer: the drawer's floor where it sticks out of the
     cabinet at `q` (default fully open; kind "drawer"). Shrunk 5 cm from the edges, like every support."""
     spec = get_fixture_spec(fixture.name)
-    margin = 0.05
+    margin = SUPPORT_EDGE_MARGIN_M
     if spec.kind == "hinge":
         shelves = [p for p in spec.parts if p.name.startswith("shelf_")]
         ceilings = [p.center[2] - p.half_size[2] for p in spec.parts if p.name.startswith("shelf_") or p.name == "top"]

@@ -200,6 +200,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         self.target_height = t([s.height_m for s in specs])
         self.target_grasp_width = t([s.grasp_width_m for s in specs])
         self.target_radius = t([s.footprint_radius_m for s in specs])
+        self.target_half_extent = t([s.half_extent_m for s in specs])  # (N, 2), along the object's x and y
         self.target_grasp_point = t([s.grasp_point_m for s in specs])  # (N, 3), object frame
         # a bowl is grasped anywhere on its rim (the pick plans the rim point along its heading): its planned grasp
         # point is the rim circle through `target_grasp_point` (radius = its x, height = its z), not the +x point
@@ -207,12 +208,12 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def _pack_supports(self) -> None:
         width = max(len(layout.supports) for layout in self.layouts)
-        packed = torch.zeros(self.num_envs, max(width, 1), 8)
+        packed = torch.zeros(self.num_envs, max(width, 1), 9)
         for i, layout in enumerate(self.layouts):
             for j, s in enumerate(layout.supports):
                 kind = SUPPORT_KINDS.index(s.kind) if s.kind in SUPPORT_KINDS else -1
-                packed[i, j] = torch.tensor([*s.center, *s.half_size, s.height, s.yaw, kind, 1.0][:8])
-        # columns: cx, cy, hx, hy, height, yaw, kind, valid
+                packed[i, j] = torch.tensor([*s.center, *s.half_size, s.height, s.yaw, kind, 1.0, min(s.clear_height, 1e3)])
+        # columns: cx, cy, hx, hy, height, yaw, kind, valid, free height above
         self.supports = packed.to(self.device)
 
     def support_of(self, env: int, index: int) -> Support:

@@ -10,6 +10,7 @@ from mani_skill.utils.registration import register_env
 from ..checks import FailureCause, consecutive
 from ..control.so3 import quat_wxyz_to_matrix
 from ..observations import wrap_to_period
+from ..scenes import articulated
 from ..tasks import instruction
 from .base import AeroSkillEnv
 from .evaluator import GoalFeatures, SkillEvaluator
@@ -20,9 +21,25 @@ PICK_HOLD_STEPS = 10  # consecutive control steps grasped and lifted (0.5 s)
 START_ABOVE_OBJECT_M = 0.15  # the tool centre point starts at least this far above the object's top
 ROUND_SHAPES = ("cylinder", "bowl")  # round about z: any heading on the room axes grasps them
 # Supports inside a fixture, open only on its front (the support's +x): the grasp heading points in through the front,
-# and a box stands with a grasp axis along it (the fridge's side walls leave no other way in).
+# and a box stands with a grasp axis along it (the fridge's side walls leave no other way in). The airframe stays
+# outside, its rotor disks clear of the carcass's front and of the open door's plane, and the arm reaches in: the X500's
+# disks reach 0.32 m ahead of the airframe centre and the arm's tool centre point 0.47 m, so the arm gets about 11 cm
+# past the fridge's front. Objects on a fridge shelf stand square to the front, within that reach, on the shelf's
+# latch half (a tool centre point on the hinge half puts a rotor disk through the open door).
 ENCLOSED_KINDS = ("fridge_shelf",)
-ENCLOSED_YAW_NOISE_RAD = 0.15
+ENCLOSED_YAW_NOISE_RAD = 0.03
+ENCLOSED_ROTOR_CLEARANCE_M = 0.035  # rotor disks to the fridge's front and to the open door's plane, at the grasp
+ENCLOSED_EDGE_MARGIN_M = 0.005  # the object's front face this far behind the shelf board's front edge
+
+
+def enclosed_reach_m(platform, yaw_noise: float = ENCLOSED_YAW_NOISE_RAD) -> tuple[float, float, float]:
+    """For a grasp up to `yaw_noise` off straight in through a fixture's front: how far past the front the tool
+    centre point reaches with the rotor disks `ENCLOSED_ROTOR_CLEARANCE_M` before it, how far the disks reach
+    sideways of the airframe centre, and how far the airframe centre sits sideways of the tool centre point."""
+    rotors, tcp_ahead = platform.rotors, platform.grasp_point_m[0]
+    c, s = math.cos(yaw_noise), math.sin(yaw_noise)
+    disks = rotors.arm_m * (c + s) + rotors.disk_radius_m
+    return tcp_ahead * c - disks - ENCLOSED_ROTOR_CLEARANCE_M, disks, tcp_ahead * s
 
 
 def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, is_round: torch.Tensor) -> torch.Tensor:
@@ -62,11 +79,45 @@ class PickEvaluator(SkillEvaluator):
         # the closing axis (body y) lies along the object's x: x across the way in
         noise = (torch.rand(len(env_idx), device=self.device) * 2 - 1) * ENCLOSED_YAW_NOISE_RAD
         yaw = torch.where(enclosed, inward - math.pi / 2 + noise, yaw)
+        if enclosed.any():
+            reachable, fits = self._within_reach_inside(env_idx, row)
+            bottom = torch.where(enclosed[:, None], reachable, bottom)
+            ok = ok & (fits | ~enclosed)
         self.enclosed[env_idx], self.inward[env_idx] = enclosed, inward
         env.place_object(env.target, env_idx, bottom, yaw)
         self.support_index[env_idx] = index
         self.rest_z[env_idx] = bottom[:, 2]
         return ok
+
+    def _within_reach_inside(self, env_idx: torch.Tensor, row: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """A point `(M, 3)` on each (fridge-shelf) support row where the arm reaches the object from in front of the
+        fridge (`ENCLOSED_KINDS`), and `(M,)` whether the object fits there at all."""
+        env = self.env
+        reach, disks, sideways = enclosed_reach_m(env.platform)
+        fridge = articulated.get_fixture_spec("fridge")
+        outer = articulated.FRIDGE_WIDTH_M / 2  # the open door's inner face stands on this plane (or beyond it)
+        inner = outer - articulated.FRIDGE_WALL_M
+        hinge = math.copysign(1.0, fridge.hinge_point[1])  # the door's hinge side, along the support's y
+        setback = articulated.FRIDGE_SHELF_SETBACK_M
+        front = row[:, 2] + articulated.SUPPORT_EDGE_MARGIN_M + setback  # the fridge's front, support frame
+        across, along = env.target_half_extent[env_idx, 0], env.target_half_extent[env_idx, 1]  # x stands across
+        rim = torch.where(env.target_grasps_rim[env_idx], env.target_grasp_point[env_idx, 0], 0.0)
+        depth_lo = setback + along + ENCLOSED_EDGE_MARGIN_M
+        depth_hi = torch.full_like(depth_lo, reach)
+        side_lo = -inner + across + ENCLOSED_EDGE_MARGIN_M  # away from the hinge, on the board
+        side_hi = outer - ENCLOSED_ROTOR_CLEARANCE_M - disks - sideways - rim  # the disks clear of the door's plane
+        u = torch.rand(len(env_idx), 2, device=self.device)
+        depth = depth_lo + u[:, 0] * (depth_hi - depth_lo).clamp_min(0.0)
+        side = side_lo + u[:, 1] * (side_hi - side_lo).clamp_min(0.0)
+        local = torch.stack([front - depth, hinge * side], -1)
+        c, s = torch.cos(row[:, 5]), torch.sin(row[:, 5])
+        xy = row[:, 0:2] + torch.stack([c * local[:, 0] - s * local[:, 1], s * local[:, 0] + c * local[:, 1]], -1)
+        return torch.cat([xy, row[:, 4:5]], -1), (depth_hi >= depth_lo) & (side_hi >= side_lo)
+
+    def clear_height(self) -> torch.Tensor:
+        """`(N,)` the free height above each env's source support (large where nothing is above)."""
+        rows = torch.arange(self.env.num_envs, device=self.device)
+        return self.env.supports[rows, self.support_index, 8]
 
     def begin(self, env_idx):
         pose = self.env.target.pose
