@@ -98,7 +98,7 @@ class PickExpert(SkillExpert):
         state = self.state()
         # the tool centre point's offset from the airframe once turned to the grasp heading
         offset = heading_frame(self.tcp() - state.position, state.yaw - self.heading)
-        along = torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
+        along = self._forward()
         staging = self.pre_grasp(self.grasp_point()) - offset - STAGING_M * along
         back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
         self.back_yaw[env_idx] = state.yaw[env_idx]
