@@ -45,10 +45,14 @@ class SkillExpert:
 
     # ----------------------------------------------------------------------------------------------------------------
     def state(self) -> AirframeState:
-        return self.env.agent.airframe_state()
+        return self.env.current_step_context().state  # computed once per control step by the env
 
     def tcp(self) -> torch.Tensor:
-        return self.env.agent.tcp_pose.p
+        return self.env.current_step_context().tcp
+
+    def object_position(self) -> torch.Tensor:
+        """The target object's pose origin (its bottom centre) `(N, 3)` at this control step."""
+        return self.env.current_step_context().object_pose.p
 
     def goto(self, phase: torch.Tensor, condition: torch.Tensor, new_phase: int) -> torch.Tensor:
         """Move envs in `phase` where `condition` holds to `new_phase` (timer restarts)."""

@@ -114,7 +114,8 @@ class PickExpert(SkillExpert):
         return self.evaluator.heading
 
     def grasp_point(self) -> torch.Tensor:
-        return self.evaluator.grasp_target(self.tcp())
+        ctx = self.env.current_step_context()
+        return self.evaluator.grasp_target(ctx.tcp, ctx.object_pose, ctx.object_rotation)
 
     def _forward(self) -> torch.Tensor:
         return torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
@@ -125,7 +126,7 @@ class PickExpert(SkillExpert):
     def entry_rise(self, grasp: torch.Tensor) -> torch.Tensor:
         """`(N,)` how far above the grasp the arm's fingers go into an enclosure (0 elsewhere)."""
         env = self.env
-        over_rim = env.target.pose.p[:, 2] + env.target_height - grasp[:, 2] + ENTER_ABOVE_RIM_M
+        over_rim = self.object_position()[:, 2] + env.target_height - grasp[:, 2] + ENTER_ABOVE_RIM_M
         rise = torch.where(env.target_grasps_rim, over_rim, torch.full_like(over_rim, ENTER_ABOVE_M))
         return torch.where(self.evaluator.enclosed, rise, torch.zeros_like(rise)) if self.has_arm else torch.zeros_like(rise)
 
@@ -135,7 +136,7 @@ class PickExpert(SkillExpert):
             up = torch.zeros_like(grasp)
             up[:, 2] = self.entry_rise(grasp)
             return grasp - SIDE_STANDOFF_M * self._forward() + up
-        top = env.target.pose.p[:, 2] + env.target_height
+        top = self.object_position()[:, 2] + env.target_height
         lift = (top - grasp[:, 2]).clamp_min(0.0) + ABOVE_OBJECT_M + 0.02  # finger tips sit 2 cm below the TCP
         return grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
 

@@ -55,7 +55,7 @@ class PlaceExpert(SkillExpert):
 
     def above_goal_tcp(self) -> torch.Tensor:
         """Tool-centre-point target of the transport: the held object's bottom over the goal, with clearance."""
-        hang = self.tcp() - self.env.target.pose.p
+        hang = self.tcp() - self.object_position()
         return self.evaluator.goal + torch.tensor([0.0, 0.0, TRANSPORT_CLEARANCE_M], device=self.device) + hang
 
     def reset(self, env_idx):
@@ -71,11 +71,11 @@ class PlaceExpert(SkillExpert):
 
     def act(self) -> torch.Tensor:
         P = PlacePhase
-        env, info = self.env, self.env.evaluate()
+        info = self.env.evaluate()
         state, tcp = self.state(), self.tcp()
         speed = torch.linalg.norm(state.velocity, dim=-1)
         goal = self.evaluator.goal
-        obj = env.target.pose.p  # bottom centre
+        obj = self.object_position()  # bottom centre
         hang = tcp - obj  # the object's bottom relative to the tool centre point
         above = goal + torch.tensor([0.0, 0.0, TRANSPORT_CLEARANCE_M], device=self.device)
         xy_error = torch.linalg.norm((obj - goal)[:, :2], dim=-1)

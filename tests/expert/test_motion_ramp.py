@@ -14,7 +14,7 @@ from aerobench.expert.nav import CARRY_ACCEL_MPS2
 def _expert(n: int = 2) -> SkillExpert:
     state = AirframeState(torch.zeros(n, 3), torch.zeros(n, 3), torch.eye(3).expand(n, 3, 3), torch.zeros(n, 3))
     env = SimpleNamespace(num_envs=n, device=torch.device("cpu"), platform=GRIPPER_PLATFORM,
-                          agent=SimpleNamespace(airframe_state=lambda: state))
+                          current_step_context=lambda: SimpleNamespace(state=state))
     return SkillExpert(env, evaluator=None)
 
 

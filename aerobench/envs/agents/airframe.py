@@ -262,12 +262,14 @@ class AerialAgent(BaseAgent):
         idx = self.virtual_joint_indices
         return airframe_state_from_joints(self.robot.get_qpos()[:, idx], self.robot.get_qvel()[:, idx])
 
-    def get_proprioception(self) -> dict:
-        """The documented proprioceptive state (`observations.STATE_FIELDS`), `(N, 19)` or `(N, 25)` with the arm."""
+    def get_proprioception(self, state: AirframeState | None = None) -> dict:
+        """The documented proprioceptive state (`observations.STATE_FIELDS`), `(N, 19)` or `(N, 25)` with the arm;
+        `state`: this step's airframe state where the caller already has it."""
         q, qd = self.robot.get_qpos(), self.robot.get_qvel()
         fingers = [self.robot.active_joints_map[n].active_index[0] for n in FINGER_JOINT_NAMES]
         arm = [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
-        state = proprio_state(self.airframe_state(), q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])
+        state = self.airframe_state() if state is None else state
+        state = proprio_state(state, q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])
         return {"state": state}
 
     def arm_qpos(self) -> torch.Tensor:

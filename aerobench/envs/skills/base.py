@@ -79,6 +79,7 @@ class StepContext:
     gripper_opening: torch.Tensor
     gripper_command: torch.Tensor  # last commanded opening in [-1, 1]
     tcp: torch.Tensor  # (N, 3)
+    tcp_pose: Pose  # the tool centre point's full pose (tcp is its position)
     opening_dirs: torch.Tensor  # (N, 2, 3) each finger's opening direction
     # the target object (None without one)
     object_pose: Pose | None = None
@@ -313,8 +314,16 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
     def _after_control_step(self):
         self._episode_step += 1
 
+    def current_step_context(self) -> StepContext:
+        """This control step's shared context (airframe state, tool centre point, contacts, object), computed once
+        per control step with `evaluate()`: the observation and the expert read it instead of querying the agent
+        again (each query is a few dozen small tensor ops, paid several times per step otherwise)."""
+        self.evaluate()
+        return self._ctx
+
     def step_context(self) -> StepContext:
         state = self.agent.airframe_state()
+        tcp_pose = self.agent.tcp_pose
         readout = self.contacts.read()
         finger_idx = [self.monitored_links.index(n) for n in FINGER_JOINT_NAMES]
         airframe_idx = self.monitored_links.index("airframe")
@@ -333,7 +342,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             airframe_force=torch.linalg.norm(readout.link_forces[:, airframe_idx], dim=-1),
             gripper_opening=self.agent.finger_opening(),
             gripper_command=self._gripper_command.clone(),
-            tcp=self.agent.tcp_pose.p,
+            tcp=tcp_pose.p,
+            tcp_pose=tcp_pose,
             opening_dirs=opening_dirs,
         )
         if self.target is not None:
@@ -461,10 +471,13 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         if self.platform.arm is not None and "is_handle_pinched" in self.evaluate():
             self.agent.body_controller.set_contact_mode(self.evaluate()["is_handle_pinched"])
 
+    def _get_obs_agent(self):
+        return self.agent.get_proprioception(self.current_step_context().state)
+
     def _get_obs_extra(self, info: dict):
         extra = {}
         if "state" in self.obs_mode:
-            extra["tcp_pose"] = self.agent.tcp_pose.raw_pose
+            extra["tcp_pose"] = self.current_step_context().tcp_pose.raw_pose
             if self.target is not None:
                 extra["object_pose"] = self.target.pose.raw_pose
             for evaluator in self.evaluators:

@@ -6,6 +6,7 @@ import math
 
 import torch
 from mani_skill.utils.registration import register_env
+from mani_skill.utils.structs.pose import Pose
 
 from ..checks import FailureCause, consecutive
 from ..control.so3 import quat_wxyz_to_matrix
@@ -129,11 +130,12 @@ class PickEvaluator(SkillEvaluator):
         planned = torch.where(self.enclosed & self.is_round, self.inward, planned)  # straight in through the front
         self.heading[env_idx] = planned[env_idx]
 
-    def grasp_target(self, tcp: torch.Tensor) -> torch.Tensor:
+    def grasp_target(self, tcp: torch.Tensor, pose: Pose | None = None, R: torch.Tensor | None = None) -> torch.Tensor:
         """Where the tool centre point grasps `(N, 3)`: the object's planned grasp point; for the bowl, the rim point
-        whose radial direction is the closing axis (body y) of the planned heading, on the side nearer `tcp`."""
-        pose = self.env.target.pose
-        R = quat_wxyz_to_matrix(pose.q)
+        whose radial direction is the closing axis (body y) of the planned heading, on the side nearer `tcp`. `pose` and
+        its rotation matrix `R`: the object's, where the caller has them from this step's context."""
+        pose = self.env.target.pose if pose is None else pose
+        R = quat_wxyz_to_matrix(pose.q) if R is None else R
         planned = pose.p + (R @ self.env.target_grasp_point[..., None])[..., 0]
         zero = torch.zeros_like(self.heading)
         radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), zero], -1)
@@ -144,7 +146,7 @@ class PickEvaluator(SkillEvaluator):
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(
-            goal_pos=self.grasp_target(ctx.tcp) - ctx.tcp,
+            goal_pos=self.grasp_target(ctx.tcp, ctx.object_pose, ctx.object_rotation) - ctx.tcp,
             heading_error=wrap_to_period(self.heading - ctx.state.yaw, self.heading_period),
             progress=ctx.object_bottom_z - self.rest_z,
         )

@@ -6,6 +6,7 @@ import torch
 from torch.utils._python_dispatch import TorchDispatchMode
 
 import aerobench.envs  # noqa: F401
+from aerobench.envs.control import fused
 from aerobench.envs.control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
 from aerobench.envs.control.flight import FlightMemory, FlightParams, flight_step
 from aerobench.envs.control.fused import FusedPhysicsStep, physics_step
@@ -55,17 +56,63 @@ def test_fused_step_is_the_laws_it_chains(platform):
     assert float(result.yaw_des[0]) == pytest.approx(float(state.yaw[0] + yaw_rate[0] * params.dt), abs=1e-6)
 
 
-@pytest.mark.parametrize("platform", ["gripper", "arm"])
-def test_compiled_step_matches_the_eager_one(platform):
-    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact = _inputs(platform, seed=1)
-    step = FusedPhysicsStep(spec, "cpu", compile=True)
+@pytest.fixture(scope="module", autouse=True)
+def aot_cache(tmp_path_factory):
+    """One ahead-of-time package cache for this module's tests (never the user's)."""
+    with pytest.MonkeyPatch.context() as mp:
+        root = tmp_path_factory.mktemp("aerobench_cache")
+        mp.setenv("AEROBENCH_CACHE_DIR", str(root))
+        yield root
+
+
+def _tensors(platform: str, seed: int = 1):
+    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact = _inputs(platform, seed=seed)
     tensors = [q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w, sync]
-    if arm is not None:
-        tensors += [arm_target, contact]
+    return spec, tensors + ([arm_target, contact] if arm is not None else [])
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_ahead_of_time_step_matches_the_eager_one(platform, aot_cache):
+    spec, tensors = _tensors(platform)
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
     compiled, eager = step(*tensors), step.eager(*tensors)
-    assert step.backend == "compiled", step.backend  # this machine has a C++ compiler: no silent fallback
+    assert step.backend == "compiled ahead of time", step.backend  # this machine has a C++ compiler: no fallback
     for name, a, b in zip(compiled._fields, compiled, eager):
         torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5, msg=name)
+    assert len(list((aot_cache / "physics_step").glob("*.pt2"))) >= 1
+    # a second process (here: a second step object) loads the package instead of building it again
+    def no_build(*args, **kwargs):
+        raise AssertionError("built again")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(torch._inductor, "aoti_compile_and_package", no_build)
+        again = FusedPhysicsStep(spec, "cpu", compile=True)
+        assert torch.equal(again(*tensors).efforts, compiled.efforts) and again.backend == "compiled ahead of time"
+
+
+def test_torch_compiled_step_matches_the_eager_one():
+    """The path of GPUs, and of CPUs where the ahead-of-time build fails."""
+    spec, tensors = _tensors("arm")
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    step._aot_ok = False
+    compiled, eager = step(*tensors), step.eager(*tensors)
+    assert step.backend == "compiled", step.backend
+    for name, a, b in zip(compiled._fields, compiled, eager):
+        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5, msg=name)
+
+
+def test_a_failed_ahead_of_time_build_falls_back_to_torch_compile(monkeypatch, caplog):
+    spec, tensors = _tensors("gripper", seed=2)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no linker")
+
+    monkeypatch.setattr(fused, "load_aot_step", broken)
+    monkeypatch.setattr(torch, "compile", lambda fn, **kw: fn)  # stands in for a working torch.compile
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    with caplog.at_level("WARNING"):
+        result = step(*tensors)
+    assert step.backend == "compiled" and torch.equal(result.efforts, step.eager(*tensors).efforts)
+    assert "ahead-of-time compilation of the physics step failed (RuntimeError: no linker)" in caplog.text
 
 
 def test_a_broken_compiler_falls_back_to_the_eager_step(monkeypatch):
@@ -74,6 +121,7 @@ def test_a_broken_compiler_falls_back_to_the_eager_step(monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("no C++ compiler")
 
+    monkeypatch.setattr(fused, "load_aot_step", broken)
     monkeypatch.setattr(torch, "compile", lambda fn, **kw: broken)
     step = FusedPhysicsStep(spec, "cpu", compile=True)
     tensors = [q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w, sync]
@@ -130,7 +178,7 @@ def test_a_compiled_flight_follows_the_eager_one():
             env.step(action)
             positions.append(base.agent.airframe_state().position[0].clone())
         tracks[compile] = torch.stack(positions)
-        assert base.agent.body_controller.step_fn.backend == ("compiled" if compile else "eager")
+        assert base.agent.body_controller.step_fn.backend == ("compiled ahead of time" if compile else "eager")
         env.close()
     assert float((tracks[True] - tracks[False]).norm(dim=-1).max()) < 1e-3
     assert float((tracks[True][-1] - tracks[True][0]).norm()) > 0.2  # it really flew
