@@ -42,6 +42,7 @@ class ContactReader:
         n = scene.num_envs
         self._zeros2 = torch.zeros(n, 2, 3, device=scene.device)
         self._zeros1 = torch.zeros(n, 3, device=scene.device)
+        self._ids: tuple[dict[int, int], dict[int, int], int, set[int]] | None = None
 
     def read(self) -> ContactReadout:
         if self.scene.gpu_sim_enabled:
@@ -58,15 +59,21 @@ class ContactReader:
             on_handle = on_handle + torch.stack([self.scene.get_pairwise_contact_forces(f, handle) for f in self.fingers], 1)
         return ContactReadout(links, on_target, target_net, on_handle)
 
-    def _read_cpu(self) -> ContactReadout:
-        # Entities are matched by their per-scene id: pybind returns a fresh wrapper for each access.
-        def eid(obj) -> int:
-            return obj._bodies[0].entity.per_scene_id
+    def _entity_ids(self) -> tuple[dict[int, int], dict[int, int], int, set[int]]:
+        # Entities are matched by their per-scene id (pybind returns a fresh wrapper for each access); the reader
+        # lives as long as its scene, so the ids are looked up once.
+        if self._ids is None:
+            def eid(obj) -> int:
+                return obj._bodies[0].entity.per_scene_id
 
-        link_of = {eid(self.robot.links_map[n]): i for i, n in enumerate(self.link_names)}
-        finger_of = {eid(f): k for k, f in enumerate(self.fingers)}
-        target_id = eid(self.target) if self.target is not None else -1
-        handle_ids = {eid(h) for h in self.handles}
+            self._ids = ({eid(self.robot.links_map[n]): i for i, n in enumerate(self.link_names)},
+                         {eid(f): k for k, f in enumerate(self.fingers)},
+                         eid(self.target) if self.target is not None else -1,
+                         {eid(h) for h in self.handles})
+        return self._ids
+
+    def _read_cpu(self) -> ContactReadout:
+        link_of, finger_of, target_id, handle_ids = self._entity_ids()
         links = np.zeros((len(self.link_names), 3))
         on_target, on_handle, target_net = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(3)
         for contact in self.scene.px.get_contacts():
