@@ -1,5 +1,7 @@
 """The fused physics step: the same numbers as the laws it chains, compiled or not, and no host synchronization."""
 
+import os
+
 import gymnasium as gym
 import pytest
 import torch
@@ -58,22 +60,26 @@ def test_fused_step_is_the_laws_it_chains(platform):
 
 @pytest.fixture(scope="module", autouse=True)
 def aot_cache(tmp_path_factory):
-    """One ahead-of-time package cache for this module's tests (never the user's)."""
+    """One ahead-of-time package cache for this test run (never the user's), shared by pytest-xdist's workers so a
+    package is built once per run."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent / f"aerobench_cache_{run}" if run else base / "aerobench_cache"
+    root.mkdir(exist_ok=True)
     with pytest.MonkeyPatch.context() as mp:
-        root = tmp_path_factory.mktemp("aerobench_cache")
         mp.setenv("AEROBENCH_CACHE_DIR", str(root))
         yield root
 
 
-def _tensors(platform: str, seed: int = 1):
-    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact = _inputs(platform, seed=seed)
+def _tensors(platform: str, seed: int = 1, n: int = 3):
+    spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact = _inputs(platform, n, seed)
     tensors = [q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w, sync]
     return spec, tensors + ([arm_target, contact] if arm is not None else [])
 
 
-@pytest.mark.parametrize("platform", ["gripper", "arm"])
-def test_ahead_of_time_step_matches_the_eager_one(platform, aot_cache):
-    spec, tensors = _tensors(platform)
+@pytest.mark.parametrize("platform, n", [("gripper", 1), ("arm", 3)])  # one env: the flight test below reuses it
+def test_ahead_of_time_step_matches_the_eager_one(platform, n, aot_cache):
+    spec, tensors = _tensors(platform, n=n)
     step = FusedPhysicsStep(spec, "cpu", compile=True)
     compiled, eager = step(*tensors), step.eager(*tensors)
     assert step.backend == "compiled ahead of time", step.backend  # this machine has a C++ compiler: no fallback
