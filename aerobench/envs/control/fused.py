@@ -39,6 +39,7 @@ log = logging.getLogger(__name__)
 # Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
 # in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
 INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
+AOT_INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True}  # an AOTInductor package is C++ throughout
 
 
 class StepResult(NamedTuple):
@@ -135,21 +136,18 @@ def load_aot_step(step: Callable, tensors: list[torch.Tensor], platform: Platfor
     returns a function of the flat tensor list that returns the flat list of outputs."""
     key = hashlib.sha256(repr((
         _control_source_digest(), repr(platform), [(tuple(t.shape), str(t.dtype)) for t in tensors],
-        torch.__version__, torch.backends.cpu.get_cpu_capability(), INDUCTOR_OPTIONS,
+        torch.__version__, torch.backends.cpu.get_cpu_capability(), AOT_INDUCTOR_OPTIONS,
     )).encode()).hexdigest()[:24]
     path = cache_dir() / "physics_step" / f"{key}.pt2"
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
-        with warnings.catch_warnings():  # torch's own pytree deprecation notes, nothing a user can act on
-            warnings.simplefilter("ignore", FutureWarning)
-            program = torch.export.export(_ExportedStep(step), tuple(tensors), strict=False)
         fd, tmp = tempfile.mkstemp(suffix=".pt2", dir=path.parent)
         os.close(fd)
         try:  # built beside its final name and renamed: a concurrent process sees a whole package or none
-            with warnings.catch_warnings():
+            with warnings.catch_warnings():  # torch's own pytree deprecation notes, nothing a user can act on
                 warnings.simplefilter("ignore", FutureWarning)
-                torch._inductor.aoti_compile_and_package(program, package_path=tmp,
-                                                         inductor_configs={"cpp.vec_isa_ok": True})
+                program = torch.export.export(_ExportedStep(step), tuple(tensors), strict=False)
+                torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(AOT_INDUCTOR_OPTIONS))
             os.replace(tmp, path)
         finally:
             if os.path.exists(tmp):

@@ -477,9 +477,10 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
     def _get_obs_extra(self, info: dict):
         extra = {}
         if "state" in self.obs_mode:
-            extra["tcp_pose"] = self.current_step_context().tcp_pose.raw_pose
-            if self.target is not None:
-                extra["object_pose"] = self.target.pose.raw_pose
+            ctx = self.current_step_context()
+            extra["tcp_pose"] = ctx.tcp_pose.raw_pose
+            if ctx.object_pose is not None:
+                extra["object_pose"] = ctx.object_pose.raw_pose
             for evaluator in self.evaluators:
                 extra.update(evaluator.privileged_obs())
         return extra
