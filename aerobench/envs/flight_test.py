@@ -147,7 +147,8 @@ class AeroFlyEnv(AerialEnv):
         state = self.reference_state()
         feedforward = None
         if self._reference_arm_q is not None:
-            feedforward = arm_weight_feedforward_body(state.rotation, self._reference_arm_q, bc.arm, bc.params.gravity)
+            payload = (self._reference_memory.mass_hat - bc.params.mass).clamp_min(0.0)
+            feedforward = arm_weight_feedforward_body(state.rotation, self._reference_arm_q, bc.arm, bc.params.gravity, payload)
         out, self._reference_memory = flight_step(
             state, bc.velocity_cmd, bc.yaw_rate_cmd, self._reference_memory, bc.params, feedforward
         )

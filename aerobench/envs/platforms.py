@@ -133,6 +133,12 @@ class ArmSpec:
     # (0.32 m), so a held object travels under the drone as on the gripper platform, and the footprint that must fit
     # through doorways is the airframe's at any heading instead of an arm 0.47 m long at one heading.
     carry_pose_rad: tuple[float, float, float] = (1.57, -1.57, 0.0)
+    # Top-down pose (not in the spec; the expert's choice for picking from and placing on open supports): upper arm
+    # level, forearm straight down, fingers pointing down and closing along body y as the gripper platform's do. The
+    # grasp point is 0.24 m ahead of and 0.285 m below the centre, inside the rotor disks' outline; the load hangs
+    # along the forearm, so the elbow (0.9 N m) carries almost nothing and the shoulder (3.0 N m) holds the spec's
+    # heaviest objects (0.41 kg at 0.24 m: about 1.3 N m with the links), where a level forearm holds 0.28 kg.
+    top_down_pose_rad: tuple[float, float, float] = (0.0, 1.57, 0.0)
     # Spec appendix "Modelling assumptions": arm link masses 0.17 kg in total plus an 82 g shoulder servo; the split
     # between the three links is nominal (elbow and wrist servos ride on the upper arm and forearm).
     upper_arm_mass_kg: float = 0.08
@@ -140,6 +146,13 @@ class ArmSpec:
     wrist_mass_kg: float = 0.04
     shoulder_servo_mass_kg: float = 0.082
     link_thickness_m: float = 0.025
+    palm_half_length_m: float = 0.02  # the palm block, centred a third of the way from the wrist joint to the grasp point
+
+    @property
+    def palm_to_grasp_m(self) -> float:
+        """How far the palm's face stands back from the grasp point along the fingers (0.06 m): a top-down grasp must
+        leave the object's top below it."""
+        return self.wrist_to_grasp_m * 2 / 3 - self.palm_half_length_m
 
 
 @dataclass(frozen=True)

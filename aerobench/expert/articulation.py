@@ -74,6 +74,7 @@ class ArticulationExpert(SkillExpert):
         self.release_normal = torch.zeros(self.n, 3, device=self.device)
         self.is_drawer = torch.zeros(self.n, dtype=torch.bool, device=self.device)
         self.reach_pose = torch.zeros(self.n, 3, device=self.device)
+        self.unfolded = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # the retract has unfolded the arm
         self.hinge_sign = torch.ones(self.n, device=self.device)  # world yaw change per unit of door angle
         self.pinch_height = torch.zeros(self.n, device=self.device)
 
@@ -91,6 +92,7 @@ class ArticulationExpert(SkillExpert):
         names = [ev.names[int(k)] for k in ev.fixture_id[env_idx]]
         self.is_drawer[env_idx] = torch.tensor([n == "drawer" for n in names], device=self.device)
         self.reach_pose[env_idx] = torch.tensor([REACH_POSE[n] for n in names], device=self.device)
+        self.unfolded[env_idx] = False
         point, normal = self.handle()
         state = self.state()
         yaw = torch.atan2(-normal[:, 1], -normal[:, 0])
@@ -150,7 +152,11 @@ class ArticulationExpert(SkillExpert):
 
         phase = self.phase
         working = self.arm_rest.expand(self.n, 3)
-        arm = torch.where(((phase == P.RETRACT) | (phase == P.SETTLE))[:, None], working, self.reach_pose)
+        # the arm keeps its reach pose until half the retract is flown: unfolding at the handle raised the wrist to
+        # within 3 cm of the counter's edge above the drawer (the clearance check's limit)
+        backed = torch.linalg.norm(tcp - self.release_point, dim=-1) > RETRACT_M / 2
+        self.unfolded |= ((phase == P.RETRACT) & backed) | (phase == P.SETTLE)  # latched: unfolding moves the TCP
+        arm = torch.where(self.unfolded[:, None], working, self.reach_pose)
         drive_speed = torch.where(self.is_drawer, DRIVE_SPEED_MPS["drawer"], DRIVE_SPEED_MPS["fridge"])
         direction = normal if opening else -normal
         target = pre_tcp

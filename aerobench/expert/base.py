@@ -29,8 +29,11 @@ class SkillExpert:
         self.timer = torch.zeros(self.n, dtype=torch.long, device=self.device)
         self.platform = env.platform
         self.has_arm = env.platform.arm is not None
-        rest = env.platform.arm.working_pose_rad if self.has_arm else ()
+        arm = env.platform.arm
+        rest = arm.working_pose_rad if self.has_arm else ()
         self.arm_rest = torch.tensor(rest, dtype=torch.float32, device=self.device)
+        self.arm_top_down = torch.tensor(arm.top_down_pose_rad if self.has_arm else (), dtype=torch.float32, device=self.device)
+        self.arm_carry = torch.tensor(arm.carry_pose_rad if self.has_arm else (), dtype=torch.float32, device=self.device)
         # The arm platform's yaw torque is limited to 0.12 N m, so its heading lags the commanded yaw rate: a gentler
         # heading loop keeps it from ringing (the gripper platform turns fast enough for the default).
         self.yaw_gain, self.max_yaw_rate = (ARM_YAW_GAIN, ARM_MAX_YAW_RATE) if self.has_arm else (YAW_GAIN, MAX_YAW_RATE_RPS)
@@ -39,6 +42,23 @@ class SkillExpert:
     def reset(self, env_idx: torch.Tensor) -> None:
         self.phase[env_idx] = 0
         self.timer[env_idx] = 0
+
+    def reaches_in(self, pick) -> torch.Tensor:
+        """`(N,)` envs where the arm platform picks with `pick` (a pick evaluator) from the side, reaching into an
+        enclosure (a fridge shelf) with the forearm level; everywhere else the arm picks top down, as the gripper does."""
+        return pick.enclosed & self.has_arm
+
+    def pick_arm_pose(self, pick) -> torch.Tensor:
+        """`(N, 3)` arm joint targets while picking with `pick`: the working pose reaching in, else the top-down pose."""
+        return torch.where(self.reaches_in(pick)[:, None], self.arm_rest, self.arm_top_down)
+
+    def carry_arm_pose(self, pick) -> torch.Tensor:
+        """`(N, 3)` arm joint targets while carrying what `pick` grasped (None: the working pose, e.g. a Place start):
+        folded under the airframe (`carry_pose_rad`) after a reach-in, else the top-down pose it was picked in. Both
+        keep the forearm's angle, so the object stays upright."""
+        if pick is None:
+            return self.arm_rest.expand(self.n, 3)
+        return torch.where(self.reaches_in(pick)[:, None], self.arm_carry, self.arm_top_down)
 
     def act(self) -> torch.Tensor:
         raise NotImplementedError

@@ -52,8 +52,9 @@ class NavExpert(SkillExpert):
         self.backing = torch.zeros(self.n, dtype=torch.bool, device=self.device)
         self.turned = torch.ones(self.n, dtype=torch.bool, device=self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
-        # the arm platform flies with its arm folded (`ArmSpec.carry_pose_rad`); it folds where the route starts
-        self.carry_pose = torch.tensor(env.platform.arm.carry_pose_rad, device=self.device) if self.has_arm else None
+        # the arm platform flies with its arm folded (`ArmSpec.carry_pose_rad`; after a top-down pick, in the top-down
+        # pose it holds the object in); it folds where the route starts
+        self.carry_pose = self.arm_carry.expand(self.n, 3).clone() if self.has_arm else None
 
     def reset(self, env_idx):
         super().reset(env_idx)
@@ -61,6 +62,8 @@ class NavExpert(SkillExpert):
         self.start_yaw[env_idx] = state.yaw[env_idx]
         self.velocity_command[env_idx] = state.velocity[env_idx]  # a ramp starts from how the drone moves now
         yaw = state.yaw
+        if self.has_arm and self.after_pick is not None:
+            self.carry_pose[env_idx] = self.carry_arm_pose(self.after_pick)[env_idx]
         back = BACK_OUT_M * torch.stack([torch.cos(yaw), torch.sin(yaw), torch.zeros_like(yaw)], -1)
         for i in env_idx.tolist():
             goal = self.evaluator.target[i].cpu().numpy()
@@ -86,7 +89,8 @@ class NavExpert(SkillExpert):
         return heading, None
 
     def _planner(self, i: int, heading: float):
-        return planner_for(self.env, i, self.carrying_depth, heading=heading, arm_q=self.carry_pose)
+        arm_q = None if self.carry_pose is None else self.carry_pose[i]
+        return planner_for(self.env, i, self.carrying_depth, heading=heading, arm_q=arm_q)
 
     def _can_turn(self, i: int, at: np.ndarray, a: float, b: float) -> bool:
         delta = math.remainder(b - a, 2 * math.pi)
@@ -112,7 +116,7 @@ class NavExpert(SkillExpert):
         gripper = torch.full((self.n,), -1.0 if self.carrying_depth > 0 else 1.0, device=self.device)
         arm = None
         if self.has_arm:  # folded once backed out (a hover, so the swing of the held object is over before flying)
-            arm = torch.where(backing[:, None], self.arm_rest.expand(self.n, 3), self.carry_pose.expand(self.n, 3))
+            arm = torch.where(backing[:, None], self.arm_rest.expand(self.n, 3), self.carry_pose)
             folded = (self.env.agent.arm_qpos() - self.carry_pose).abs().max(-1).values < ARM_FOLDED_RAD
             target = torch.where((~backing & ~folded)[:, None], self.turn_at, target)
         return self.action(target, speed, yaw, gripper, tracked=state.position, arm_target=arm,

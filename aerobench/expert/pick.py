@@ -1,8 +1,9 @@
 """Pick expert: approach, align, descend (or reach in), close, wait for the grasp, lift, hold.
 
 Gripper platform: the grasp is taken from above (the L-shaped approach of the spec's Fig. trajectory diversity:
-fly over the object, then descend onto it). Arm platform: the fingers point forward, so the grasp is taken from the
-side at the object's grasp height, reaching in along the heading. Guards: a grasp that does not close within its
+fly over the object, then descend onto it). Arm platform: from above too, in the top-down pose (forearm down,
+`ArmSpec.top_down_pose_rad`), except into an enclosure (a fridge shelf), where the fingers point forward and the
+grasp is taken from the side at the object's grasp height, reaching in along the heading. Guards: a grasp that does not close within its
 time, or is lost while lifting, reopens and retries from the pre-grasp point (at most `MAX_RETRIES` times).
 A pick that follows another chain stage (e.g. after opening the fridge, the fingers still at the door's handle) first
 backs away from where that stage left it and follows a planned route to a staging point before the pre-grasp point
@@ -16,6 +17,7 @@ from enum import IntEnum
 
 import torch
 
+from ..envs.control.arm import arm_point_positions_body
 from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from .base import SkillExpert
@@ -96,8 +98,13 @@ class PickExpert(SkillExpert):
         """Airframe waypoints: straight back along the current heading, then the planner's route to a staging point
         `STAGING_M` before the pre-grasp point along the grasp heading (APPROACH flies the rest straight)."""
         state = self.state()
-        # the tool centre point's offset from the airframe once turned to the grasp heading
-        offset = heading_frame(self.tcp() - state.position, state.yaw - self.heading)
+        # the tool centre point's offset from the airframe once turned to the grasp heading (and, with the arm, in
+        # the pose it picks in)
+        if self.has_arm:
+            body = arm_point_positions_body(self.pick_arm_pose(self.evaluator), self.platform.arm)["grasp"]
+            offset = heading_frame(body, -self.heading)
+        else:
+            offset = heading_frame(self.tcp() - state.position, state.yaw - self.heading)
         along = self._forward()
         staging = self.pre_grasp(self.grasp_point()) - offset - STAGING_M * along
         back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
@@ -105,7 +112,8 @@ class PickExpert(SkillExpert):
         self.turned[env_idx] = False
         for i in env_idx.tolist():
             start, goal = (state.position[i] - back[i]).cpu().numpy(), staging[i].cpu().numpy()
-            route = planner_for(self.env, i, heading=float(self.heading[i])).plan(start, goal)
+            arm_q = self.pick_arm_pose(self.evaluator)[i] if self.has_arm else None
+            route = planner_for(self.env, i, heading=float(self.heading[i]), arm_q=arm_q).plan(start, goal)
             self.route.set(i, [start] + (route if route is not None else [goal]))
         self.phase[env_idx] = PickPhase.ROUTE
 
@@ -132,13 +140,15 @@ class PickExpert(SkillExpert):
 
     def pre_grasp(self, grasp: torch.Tensor) -> torch.Tensor:
         env = self.env
-        if self.has_arm:
-            up = torch.zeros_like(grasp)
-            up[:, 2] = self.entry_rise(grasp)
-            return grasp - SIDE_STANDOFF_M * self._forward() + up
         top = self.object_position()[:, 2] + env.target_height
         lift = (top - grasp[:, 2]).clamp_min(0.0) + ABOVE_OBJECT_M + 0.02  # finger tips sit 2 cm below the TCP
-        return grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+        above = grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+        if not self.has_arm:
+            return above
+        up = torch.zeros_like(grasp)
+        up[:, 2] = self.entry_rise(grasp)
+        side = grasp - SIDE_STANDOFF_M * self._forward() + up
+        return torch.where(self.reaches_in(self.evaluator)[:, None], side, above)
 
     def act(self) -> torch.Tensor:
         P = PickPhase
@@ -192,7 +202,7 @@ class PickExpert(SkillExpert):
         # Out of an enclosure the object is first drawn towards the front along the shelf, then lifted: the payload
         # 0.47 m ahead pitches the airframe nose-down as it comes off the shelf (the arm's feedforward covers the
         # arm's own weight only), and the drift that starts towards the fridge's front exceeds the disks' clearance.
-        drawing = self.evaluator.enclosed & self.has_arm
+        drawing = self.reaches_in(self.evaluator)
         back = ENCLOSED_LIFT_BACK_M * drawing.float()
         self.drawn |= (phase == P.LIFT) & (self._along(tcp) <= self._along(self.lift_from) - back + 0.01)
         lift_target = lift_target - back[:, None] * self._forward()
@@ -200,7 +210,7 @@ class PickExpert(SkillExpert):
         target = torch.where((phase == P.LIFT)[:, None] | (phase == P.HOLD)[:, None], lift_target, target)
         # descend only while centred over the grasp: a drift pauses the descent until it is corrected
         drift = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > self.align_tolerance
-        hold_height = (phase == P.DESCEND) & drift & (not self.has_arm)
+        hold_height = (phase == P.DESCEND) & drift & ~self.reaches_in(self.evaluator)
         target = torch.where(hold_height[:, None], torch.cat([grasp[:, :2], tcp[:, 2:]], -1), target)
         near = torch.linalg.norm(tcp - grasp, dim=-1) < FINAL_ZONE_M
         max_speed = torch.full((self.n,), APPROACH_SPEED_MPS, device=self.device)
@@ -223,5 +233,7 @@ class PickExpert(SkillExpert):
             self.turned |= backed_off & (wrap_angle(self.heading - state.yaw).abs() < TURN_TOLERANCE_RAD)
             turning = routing & backed_off & ~self.turned
             target = torch.where(turning[:, None], self.route.points[:, 0], target)
-        return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), yaw, gripper, gain=gain, tracked=tracked)
+        arm = self.pick_arm_pose(self.evaluator) if self.has_arm else None
+        return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), yaw, gripper, arm_target=arm, gain=gain,
+                           tracked=tracked)
 

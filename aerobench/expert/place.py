@@ -46,12 +46,17 @@ class PlacePhase(IntEnum):
 
 
 class PlaceExpert(SkillExpert):
-    def __init__(self, env, evaluator):
+    def __init__(self, env, evaluator, pick=None):
         super().__init__(env, evaluator)
+        self.pick = pick  # the evaluator of the chain's pick that grasped the object (None: a Place start)
         self.heading = torch.zeros(self.n, device=self.device)
         self.release_point = torch.zeros(self.n, 3, device=self.device)
+        self.stop_point = torch.zeros(self.n, 3, device=self.device)
         self.route = RouteFollower(self.n, self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
+        # The arm platform places in the pose it carried the object in (`carry_arm_pose`): unfolding to the working
+        # pose over a drawer swept the forearm into it.
+        self.arm_pose = self.arm_rest.expand(self.n, 3).clone() if self.has_arm else None
 
     def above_goal_tcp(self) -> torch.Tensor:
         """Tool-centre-point target of the transport: the held object's bottom over the goal, with clearance."""
@@ -62,10 +67,13 @@ class PlaceExpert(SkillExpert):
         super().reset(env_idx)
         state = self.state()
         self.heading[env_idx] = state.yaw[env_idx]
+        if self.has_arm:
+            self.arm_pose[env_idx] = self.carry_arm_pose(self.pick)[env_idx]
         airframe_goal = self.above_goal_tcp() + (state.position - self.tcp())
         depth = float(self.env.target_grasp_point[:, 2].max())
         for i in env_idx.tolist():
-            route = planner_for(self.env, i, depth).plan(state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy())
+            arm_q = None if self.arm_pose is None else self.arm_pose[i]
+            route = planner_for(self.env, i, depth, arm_q=arm_q).plan(state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy())
             self.planned[i] = route is not None
             self.route.set(i, route if route is not None else [airframe_goal[i].cpu().numpy()])
 
@@ -86,7 +94,8 @@ class PlaceExpert(SkillExpert):
         # policy that sees the same inputs can learn when to open (docs/experiments.md, "What fails: the release").
         set_down_steps = info["set_down_steps"]
         self.goto(P.STOP, set_down_steps == 0, P.DESCEND)  # the support let go: press again
-        self.goto(P.DESCEND, set_down_steps >= SET_DOWN_STEPS, P.STOP)
+        stopped = self.goto(P.DESCEND, set_down_steps >= SET_DOWN_STEPS, P.STOP)
+        self.stop_point = torch.where(stopped[:, None], tcp, self.stop_point)
         opened = self.goto(P.STOP, (speed < STOPPED_MPS) & (set_down_steps >= SET_DOWN_STEPS + STOPPED_STEPS), P.OPEN)
         self.release_point = torch.where(opened[:, None], tcp, self.release_point)
         self.goto(P.OPEN, self.timer >= OPEN_STEPS, P.RETREAT)
@@ -105,6 +114,11 @@ class PlaceExpert(SkillExpert):
         press = tcp - torch.tensor([0.0, 0.0, 1.0], device=self.device)  # far below: max_speed sets the push
         target = torch.where(on_surface[:, None], press, target)
         target = torch.where((phase == P.STOP)[:, None], tcp, target)  # zero velocity while the jaws still hold it
+        # ... except on the arm: the support pushing up at the grasp point, 0.24 m ahead of the centre of mass, pitches
+        # the airframe and it creeps backwards (14 cm over 8 s in a drawer, dragging the object off the goal), so it
+        # holds the point where it stopped
+        holding = (phase == P.STOP) & self.has_arm
+        target = torch.where(holding[:, None], self.stop_point, target)
         # Open fingers clear a wide object by a few mm a side (a 102 mm can in the 110 mm jaws): from the release on,
         # hold the release point (a position hold that pulls a drift back) until the retreat lifts straight up.
         target = torch.where((phase == P.OPEN)[:, None], self.release_point, target)
@@ -116,12 +130,13 @@ class PlaceExpert(SkillExpert):
         max_speed = torch.where(phase == P.DESCEND, torch.where(near, TOUCH_SPEED_MPS, DESCEND_SPEED_MPS), max_speed)
         max_speed = torch.where(on_surface, torch.full_like(max_speed, PRESS_SPEED_MPS), max_speed)
         max_speed = torch.where(phase == P.STOP, torch.zeros_like(max_speed), max_speed)
+        max_speed = torch.where(holding, torch.full_like(max_speed, HOLD_SPEED_MPS), max_speed)
         max_speed = torch.where(phase == P.OPEN, torch.full_like(max_speed, HOLD_SPEED_MPS), max_speed)
         max_speed = torch.where(phase == P.RETREAT, torch.full_like(max_speed, RETREAT_SPEED_MPS), max_speed)
         max_speed = torch.where(phase == P.HOVER, torch.full_like(max_speed, 0.1), max_speed)
         released = (phase == P.OPEN) | (phase == P.RETREAT) | (phase == P.HOVER)
         gripper = torch.where(released, torch.ones(self.n, device=self.device), torch.full((self.n,), -1.0, device=self.device))
-        return self.action(target, max_speed, self.heading, gripper)
+        return self.action(target, max_speed, self.heading, gripper, arm_target=self.arm_pose)
 
 
 __all__ = ["PlaceExpert", "PlacePhase", "wrap_angle"]

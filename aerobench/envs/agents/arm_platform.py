@@ -49,7 +49,7 @@ class AeroArmPlatform(AerialAgent):
             )
             if name == "wrist":  # the palm: a short block a third of the way to the grasp point
                 com = (length / 3, 0.0, 0.0)
-                add_box(link, com, (0.02, 0.035, 0.015), GRIPPER_COLOR)
+                add_box(link, com, (arm.palm_half_length_m, 0.035, 0.015), GRIPPER_COLOR)
             else:
                 com = (length / 2, 0.0, 0.0)
                 add_box(link, com, (length / 2, t, t), ARM_COLOR)

@@ -1,6 +1,10 @@
 """Arm-platform extras of the flight loop (spec appendix "Robot platforms": "Arm platform" and "Contact mode").
 
-- The flight loop adds a feedforward torque cancelling the arm's weight moment about the airframe centre.
+- The flight loop adds a feedforward torque cancelling the arm's weight moment about the airframe centre; the
+  payload-aware controller adds the carried object's, at the grasp point (its estimate m_hat - m0: zero under the
+  nominal controller and once the object is set down). Not in the spec, whose arm platform opens and closes; an object
+  carried 0.24-0.47 m ahead of the centre otherwise pitches the airframe until the velocity integrator has absorbed its
+  moment, and tips it back when the support takes the load (docs/expert.md, LongHorizonRearrangement).
 - Arm joints are position servos with the spec's torque limits.
 - Contact mode: while a handle is pinched the shoulder servo gives zero torque and the arm feedforward is off, so the
   arm acts as a strut; on release the shoulder stiffens again and the velocity integrator resets.
@@ -91,10 +95,16 @@ def arm_mass_points_body(q_arm: torch.Tensor, params: ArmParams) -> tuple[torch.
 
 
 def arm_weight_feedforward_body(
-    R: torch.Tensor, q_arm: torch.Tensor, params: ArmParams, gravity: float = GRAVITY
+    R: torch.Tensor, q_arm: torch.Tensor, params: ArmParams, gravity: float = GRAVITY, payload_kg: torch.Tensor | None = None
 ) -> torch.Tensor:
-    """Body torque cancelling the arm's weight moment about the airframe centre: -R^T sum_i (R r_i) x (-m_i g e_z)."""
+    """Body torque cancelling the arm's weight moment about the airframe centre: -R^T sum_i (R r_i) x (-m_i g e_z);
+    with `payload_kg` `(N,)`, a point mass at the grasp point too."""
     masses, r_body = arm_mass_points_body(q_arm, params)
+    masses = masses.expand(r_body.shape[0], -1)
+    if payload_kg is not None:
+        grasp = arm_point_positions_body(q_arm, params.spec)["grasp"]
+        masses = torch.cat([masses, payload_kg[:, None]], 1)
+        r_body = torch.cat([r_body, grasp[:, None]], 1)
     r_world = (R[:, None] @ r_body[..., None])[..., 0]
     weight = torch.zeros_like(r_world)
     weight[..., 2] = -masses * gravity

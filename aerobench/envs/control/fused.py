@@ -93,7 +93,8 @@ def physics_step(
     feedforward = arm_torques = None
     if arm is not None:
         q_arm, qd_arm = q[:, NUM_VIRTUAL_JOINTS:], qd[:, NUM_VIRTUAL_JOINTS:]
-        feedforward = arm_weight_feedforward_body(state.rotation, q_arm, arm, params.gravity)
+        payload = (mass_hat - params.mass).clamp_min(0.0)  # the carried object's estimated mass (payload-aware)
+        feedforward = arm_weight_feedforward_body(state.rotation, q_arm, arm, params.gravity, payload)
         feedforward = torch.where(contact_mode[:, None], torch.zeros_like(feedforward), feedforward)
         arm_torques = arm_servo_torques(q_arm, qd_arm, arm_target, arm, contact_mode)
     out, xi, yaw_des = flight_laws(state, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, params, feedforward)

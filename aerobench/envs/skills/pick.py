@@ -31,6 +31,10 @@ ENCLOSED_KINDS = ("fridge_shelf",)
 ENCLOSED_YAW_NOISE_RAD = 0.03
 ENCLOSED_ROTOR_CLEARANCE_M = 0.035  # rotor disks to the fridge's front and to the open door's plane, at the grasp
 ENCLOSED_EDGE_MARGIN_M = 0.005  # the object's front face this far behind the shelf board's front edge
+# The arm's palm stands 6 cm back from its grasp point (the gripper's 10 cm): grasped top down at half height, an object
+# taller than 12 cm (the master chef can, the cracker and sugar boxes) meets the palm, so the arm grasps those higher,
+# its palm this far above the object's top.
+TOP_DOWN_PALM_MARGIN_M = 0.015
 
 
 def enclosed_reach_m(platform, yaw_noise: float = ENCLOSED_YAW_NOISE_RAD) -> tuple[float, float, float]:
@@ -137,6 +141,11 @@ class PickEvaluator(SkillEvaluator):
         pose = self.env.target.pose if pose is None else pose
         R = quat_wxyz_to_matrix(pose.q) if R is None else R
         planned = pose.p + (R @ self.env.target_grasp_point[..., None])[..., 0]
+        arm = self.env.platform.arm
+        if arm is not None:  # top down (everywhere but an enclosure), the arm's palm clear of the object's top
+            above_palm = self.env.target_height - self.env.target_grasp_point[:, 2] - (arm.palm_to_grasp_m - TOP_DOWN_PALM_MARGIN_M)
+            planned = planned + torch.stack([torch.zeros_like(above_palm), torch.zeros_like(above_palm),
+                                             above_palm.clamp_min(0.0) * ~self.enclosed], -1)
         zero = torch.zeros_like(self.heading)
         radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), zero], -1)
         side = torch.sign((radial * (tcp - pose.p)).sum(-1, keepdim=True) + 1e-9)

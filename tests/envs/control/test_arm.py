@@ -2,6 +2,7 @@
 
 import math
 
+import pytest
 import torch
 
 from aerobench.envs.control.arm import (
@@ -31,6 +32,17 @@ def test_feedforward_cancels_about_07_nm_with_the_arm_extended():
     # independent of the airframe tilt only through R: pitching the body with the arm rotates the moment arm
     tilted = arm_weight_feedforward_body(rot_y(torch.tensor([0.3])), torch.zeros(1, 3), ARM, GRAVITY)[0]
     assert abs(float(tilted[1]) - float(tau[1]) * math.cos(0.3)) < 0.05
+
+
+def test_feedforward_adds_the_carried_payload_at_the_grasp_point():
+    level = torch.eye(3)[None].expand(2, 3, 3)
+    q = WORKING.expand(2, 3)
+    bare = arm_weight_feedforward_body(level, q, ARM, GRAVITY)
+    loaded = arm_weight_feedforward_body(level, q, ARM, GRAVITY, torch.tensor([0.0, 0.4]))
+    assert torch.allclose(loaded[0], bare[0])
+    grasp_x = float(arm_point_positions_body(WORKING, ARM_PLATFORM.arm)["grasp"][0, 0])
+    # 0.4 kg at the grasp point 0.47 m ahead: 1.8 N m more against the nose-down moment
+    assert float(loaded[1, 1] - bare[1, 1]) == pytest.approx(-0.4 * GRAVITY * grasp_x, rel=1e-5)
 
 
 def test_servos_are_torque_limited_and_shoulder_goes_limp_in_contact_mode():

@@ -23,6 +23,7 @@ def _inputs(platform: str, n: int = 3, seed: int = 0):
     memory = FlightMemory.initial(n, params)
     memory.xi = torch.randn(n, 3, generator=g) * 0.1
     memory.yaw_des = torch.randn(n, generator=g)
+    memory.mass_hat = memory.mass_hat + torch.tensor([0.0, 0.4] + [0.2] * max(n - 2, 0))[:n]  # carrying a payload in some envs
     joints = 6 + (3 if spec.arm else 0)
     q, qd = torch.randn(n, joints, generator=g) * 0.2, torch.randn(n, joints, generator=g) * 0.2
     v_cmd, yaw_rate = torch.randn(n, 3, generator=g), torch.randn(n, generator=g)
@@ -43,7 +44,7 @@ def test_fused_step_is_the_laws_it_chains(platform):
     memory.yaw_des = torch.where(sync, state.yaw, memory.yaw_des)
     feedforward = None
     if arm is not None:
-        feedforward = arm_weight_feedforward_body(state.rotation, q[:, 6:], arm, params.gravity)
+        feedforward = arm_weight_feedforward_body(state.rotation, q[:, 6:], arm, params.gravity, memory.mass_hat - params.mass)
         feedforward = torch.where(contact[:, None], torch.zeros_like(feedforward), feedforward)
     out, memory = flight_step(state, v_cmd, yaw_rate, memory, params, feedforward)
     efforts = joint_efforts_from_wrench(q[:, :6], out.force_world, out.torque_world)

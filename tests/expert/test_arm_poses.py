@@ -1,0 +1,93 @@
+"""The arm platform's poses per chain stage: a pick from an open support (a table, a counter) is taken top down with
+the forearm hanging (the load along the forearm, within the spec's elbow torque), a pick from a fridge shelf reaches
+in with the forearm level; the transport and the place keep the forearm's angle, so the object stays upright
+(docs/expert.md, LongHorizonRearrangement)."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+import aerobench.envs  # noqa: F401
+from aerobench.envs.control.arm import arm_point_positions_body
+from aerobench.envs.objects import OBJECTS
+from aerobench.envs.platforms import PLATFORMS
+from aerobench.expert import ExpertController
+from aerobench.expert.nav import NavExpert
+from aerobench.expert.pick import PickExpert
+from aerobench.expert.place import PlaceExpert
+from aerobench.expert.planner import planner_for
+
+ENV0 = torch.tensor([0])
+G = 9.81
+
+
+def _gravity_torques(q: tuple[float, float, float], load_kg: float) -> tuple[float, float]:
+    """Static shoulder and elbow torques (N m) of the arm's links and a load at the grasp point, from the geometry."""
+    arm = PLATFORMS["arm"].arm
+    p = {k: v[0].numpy() for k, v in arm_point_positions_body(torch.tensor([q]), arm).items()}
+    masses = [(arm.upper_arm_mass_kg, (p["shoulder"] + p["elbow"]) / 2), (arm.forearm_mass_kg, (p["elbow"] + p["wrist"]) / 2),
+              (arm.wrist_mass_kg, p["wrist"]), (load_kg, p["grasp"])]
+    shoulder = sum(m * G * abs(x[0] - p["shoulder"][0]) for m, x in masses)
+    elbow = sum(m * G * abs(x[0] - p["elbow"][0]) for m, x in masses[1:])
+    return shoulder, elbow
+
+
+def test_the_top_down_pose_holds_the_heaviest_object_within_the_joint_limits_where_a_level_forearm_does_not():
+    arm = PLATFORMS["arm"].arm
+    heaviest = max(spec.mass_kg for spec in OBJECTS.values() if spec.name != "package")
+    shoulder_limit, elbow_limit = arm.joints[0].torque_limit_nm, arm.joints[1].torque_limit_nm
+    shoulder, elbow = _gravity_torques(arm.top_down_pose_rad, heaviest)
+    assert shoulder < shoulder_limit and elbow < 0.05 * elbow_limit, (shoulder, elbow)
+    _, elbow_level = _gravity_torques(arm.working_pose_rad, heaviest)
+    assert elbow_level > elbow_limit, elbow_level  # why the side grasp drops the heavy classes
+    # the grasp point hangs under the airframe, inside the rotor disks' outline
+    grasp = arm_point_positions_body(torch.tensor([arm.top_down_pose_rad]), arm)["grasp"][0]
+    rotors = PLATFORMS["arm"].rotors
+    assert float(torch.hypot(grasp[0], grasp[1])) < rotors.arm_m * math.sqrt(2) + rotors.disk_radius_m - 0.05
+    assert -0.30 < float(grasp[2]) < -0.25
+
+
+def test_the_drawer_chain_picks_top_down_carries_and_places_in_that_pose():
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
+                   chain="open_pick_nav_place_close")
+    env.reset(seed=20000060, options={"reconfigure": True, "objects": ["master_chef_can"]})
+    base = env.unwrapped
+    controller = ExpertController(base)
+    pick, nav, place = controller.experts[1], controller.experts[2], controller.experts[3]
+    assert isinstance(pick, PickExpert) and isinstance(nav, NavExpert) and isinstance(place, PlaceExpert)
+    assert place.pick is base.evaluators[1] and not bool(base.evaluators[1].enclosed[0])
+    top_down = torch.tensor(base.platform.arm.top_down_pose_rad)
+    base.evaluators[1].begin(ENV0)
+    assert torch.allclose(pick.pick_arm_pose(base.evaluators[1])[0], top_down)
+    # the pre-grasp point is above the object, as on the gripper platform
+    grasp = pick.grasp_point()
+    pre = pick.pre_grasp(grasp)
+    assert torch.allclose(pre[0, :2], grasp[0, :2]) and float(pre[0, 2] - grasp[0, 2]) > 0.10
+    nav.reset(ENV0)
+    place.reset(ENV0)
+    assert torch.allclose(nav.carry_pose[0], top_down) and torch.allclose(place.arm_pose[0], top_down)
+    env.close()
+
+
+def test_a_fridge_pick_reaches_in_level_and_is_carried_folded():
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
+                   chain="open_pick_nav_place")
+    env.reset(seed=20000061, options={"reconfigure": True, "objects": ["sugar_box"]})
+    base = env.unwrapped
+    controller = ExpertController(base)
+    pick, nav, place = controller.experts[1], controller.experts[2], controller.experts[3]
+    assert bool(base.evaluators[1].enclosed[0])
+    arm = base.platform.arm
+    assert torch.allclose(pick.pick_arm_pose(base.evaluators[1])[0], torch.tensor(arm.working_pose_rad))
+    nav.reset(ENV0)
+    place.reset(ENV0)
+    carry = torch.tensor(arm.carry_pose_rad)
+    assert torch.allclose(nav.carry_pose[0], carry) and torch.allclose(place.arm_pose[0], carry)
+    # the forearm's angle (shoulder + elbow) is the same while picking and while carrying: the object stays upright
+    assert math.isclose(sum(arm.working_pose_rad[:2]), sum(arm.carry_pose_rad[:2]), abs_tol=1e-6)
+    assert math.isclose(sum(arm.top_down_pose_rad[:2]), math.pi / 2, abs_tol=0.01)
+    footprint = planner_for(base, 0, heading=0.0, arm_q=place.arm_pose[0]).footprint
+    assert np.isfinite(footprint).all()
+    env.close()
