@@ -3,8 +3,9 @@
 Gripper platform: the grasp is taken from above (the L-shaped approach of the spec's Fig. trajectory diversity:
 fly over the object, then descend onto it). Arm platform: from above too, in the top-down pose (forearm down,
 `ArmSpec.top_down_pose_rad`), except into an enclosure (a fridge shelf), where the fingers point forward and the
-grasp is taken from the side at the object's grasp height, reaching in along the heading. Guards: a grasp that does not close within its
-time, or is lost while lifting, reopens and retries from the pre-grasp point (at most `MAX_RETRIES` times).
+grasp is taken from the side at the object's grasp height, reaching in along the heading. Guards: a grasp that does
+not close within its time, or is lost while lifting, reopens and retries from the pre-grasp point (at most
+`MAX_RETRIES` times).
 A pick that follows another chain stage (e.g. after opening the fridge, the fingers still at the door's handle) first
 backs away from where that stage left it and follows a planned route to a staging point before the pre-grasp point
 (ROUTE), because the straight line from a handle into the fridge sweeps the fingers across the open door.
