@@ -49,13 +49,16 @@ def test_the_top_down_pose_holds_the_heaviest_object_within_the_joint_limits_whe
     assert -0.30 < float(grasp[2]) < -0.25
 
 
+def _chain_experts(chain: str, seed: int, obj: str):
+    """A LongHorizonRearrangement chain env reset to one start, and its pick, transport and place experts."""
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement", chain=chain)
+    env.reset(seed=seed, options={"reconfigure": True, "objects": [obj]})
+    experts = ExpertController(env.unwrapped).experts
+    return env, env.unwrapped, experts[1], experts[2], experts[3]
+
+
 def test_the_drawer_chain_picks_top_down_carries_and_places_in_that_pose():
-    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
-                   chain="open_pick_nav_place_close")
-    env.reset(seed=20000060, options={"reconfigure": True, "objects": ["master_chef_can"]})
-    base = env.unwrapped
-    controller = ExpertController(base)
-    pick, nav, place = controller.experts[1], controller.experts[2], controller.experts[3]
+    env, base, pick, nav, place = _chain_experts("open_pick_nav_place_close", 20000060, "master_chef_can")
     assert isinstance(pick, PickExpert) and isinstance(nav, NavExpert) and isinstance(place, PlaceExpert)
     assert place.pick is base.evaluators[1] and not bool(base.evaluators[1].enclosed[0])
     top_down = torch.tensor(base.platform.arm.top_down_pose_rad)
@@ -72,12 +75,7 @@ def test_the_drawer_chain_picks_top_down_carries_and_places_in_that_pose():
 
 
 def test_a_fridge_pick_reaches_in_level_and_is_carried_folded():
-    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
-                   chain="open_pick_nav_place")
-    env.reset(seed=20000061, options={"reconfigure": True, "objects": ["sugar_box"]})
-    base = env.unwrapped
-    controller = ExpertController(base)
-    pick, nav, place = controller.experts[1], controller.experts[2], controller.experts[3]
+    env, base, pick, nav, place = _chain_experts("open_pick_nav_place", 20000061, "sugar_box")
     assert bool(base.evaluators[1].enclosed[0])
     arm = base.platform.arm
     assert torch.allclose(pick.pick_arm_pose(base.evaluators[1])[0], torch.tensor(arm.working_pose_rad))
