@@ -11,18 +11,21 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 
+import numpy as np
 import torch
 
 from ..envs.control.arm import arm_point_positions_body
 from ..envs.scenes import articulated
 from .base import SkillExpert
-from .planner import planner_for
+from .motion import TURN_TOLERANCE_RAD, wrap_angle
+from .planner import can_turn_in_place, planner_for, route_at_some_heading
 from .route import RouteFollower
 
 STANDOFF_M = 0.14  # pre-insert: the tool centre point this far out along the handle's normal
 APPROACH_SPEED_MPS = 0.45
 INSERT_SPEED_MPS = 0.05
 AT_HANDLE_M = 0.008
+ROUTE_END_M = 0.05  # an approach flown at another heading turns to face the handle this close to its route's end
 PINCH_CONFIRM_STEPS = 3
 # The door and drawer resist with Coulomb friction (7 N / 2.5 N at the handle): the velocity loop must wind its
 # integrator up to the tilt that pulls that hard, so a brisk commanded speed gets them moving within seconds.
@@ -70,6 +73,11 @@ class ArticulationExpert(SkillExpert):
         self.reach_in_next = reach_in_next
         self.route = RouteFollower(self.n, self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
+        # the approach is flown at `heading` and turns in place to face the handle where the route ends (the route
+        # at the handle's heading is tried first; with the arm reaching out a start may only have one at another)
+        self.heading = torch.zeros(self.n, device=self.device)
+        self.turned = torch.ones(self.n, dtype=torch.bool, device=self.device)
+        self.arrived = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # at the route's end (latched)
         self.release_point = torch.zeros(self.n, 3, device=self.device)
         self.release_normal = torch.zeros(self.n, 3, device=self.device)
         self.is_drawer = torch.zeros(self.n, dtype=torch.bool, device=self.device)
@@ -100,10 +108,21 @@ class ArticulationExpert(SkillExpert):
         pre_tcp = point + STANDOFF_M * normal
         airframe_goal = pre_tcp - self._tcp_offset_world(yaw, self.reach_pose)
         for i in env_idx.tolist():
-            planner = planner_for(self.env, i, heading=float(yaw[i]), arm_q=self.reach_pose[i])
-            route = planner.plan(state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy())
+            start, goal, facing = state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy(), float(yaw[i])
+            heading, route = self._plan(i, start, goal, facing, float(state.yaw[i]))
             self.planned[i] = route is not None
-            self.route.set(i, route if route is not None else [airframe_goal[i].cpu().numpy()])
+            self.heading[i], self.turned[i], self.arrived[i] = heading, heading == facing, False
+            self.route.set(i, route if route is not None else [goal])
+
+    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, facing: float, yaw: float) -> tuple[float, list | None]:
+        """The route facing the handle, or else the first candidate heading with a route after which the drone can
+        turn in place at the route's end to face the handle."""
+        toward = math.atan2(goal[1] - start[1], goal[0] - start[0])
+        candidates = [facing, yaw, toward] + [facing + k * math.pi / 2 for k in (1, -1, 2)]
+        planner_at = lambda h: planner_for(self.env, i, heading=h, arm_q=self.reach_pose[i])  # noqa: E731
+        return route_at_some_heading(
+            planner_at, start, goal, candidates, lambda h: h == facing or can_turn_in_place(planner_at, goal, h, facing)
+        )
 
     def _hinge_sign(self) -> torch.Tensor:
         """+1 where opening the door turns its normal counter-clockwise (seen from above), -1 otherwise."""
@@ -137,7 +156,9 @@ class ArticulationExpert(SkillExpert):
 
         waypoint, last = self.route.target(state.position)
         pre_tcp = point + STANDOFF_M * normal
-        self.goto(P.APPROACH, last & (torch.linalg.norm(tcp - pre_tcp, dim=-1) < 0.02) & (state.velocity.norm(dim=-1) < 0.05), P.INSERT)
+        self.arrived |= last & (torch.linalg.norm(waypoint - state.position, dim=-1) < ROUTE_END_M)
+        self.turned |= self.arrived & (wrap_angle(yaw_target - state.yaw).abs() < TURN_TOLERANCE_RAD)
+        self.goto(P.APPROACH, last & self.turned & (torch.linalg.norm(tcp - pre_tcp, dim=-1) < 0.02) & (state.velocity.norm(dim=-1) < 0.05), P.INSERT)
         self.goto(P.INSERT, torch.linalg.norm(tcp - point, dim=-1) < AT_HANDLE_M, P.PINCH)
         started_drive = self.goto(P.PINCH, pinched & (self.timer >= PINCH_CONFIRM_STEPS), P.DRIVE)
         self.goto(P.DRIVE, goal_reached, P.UNWIND)
@@ -160,7 +181,8 @@ class ArticulationExpert(SkillExpert):
         drive_speed = torch.where(self.is_drawer, DRIVE_SPEED_MPS["drawer"], DRIVE_SPEED_MPS["fridge"])
         direction = normal if opening else -normal
         target = pre_tcp
-        target = torch.where((phase == P.APPROACH)[:, None] & ~last[:, None], waypoint + (tcp - state.position), target)
+        routing = (phase == P.APPROACH) & ~(last & self.turned)  # the route, then the turn in place at its end
+        target = torch.where(routing[:, None], waypoint + (tcp - state.position), target)
         target = torch.where((phase == P.INSERT)[:, None] | (phase == P.PINCH)[:, None], point, target)
         target = torch.where((phase == P.DRIVE)[:, None], tcp + direction, target)  # far along: speed sets the pace
         target = torch.where((phase == P.RELEASE)[:, None], tcp, target)
@@ -201,6 +223,7 @@ class ArticulationExpert(SkillExpert):
         unwind[:, 2] = pull[:, 2]
         drive = phase == P.DRIVE
         override = torch.where(drive[:, None], pull, unwind)
+        yaw_target = torch.where((phase == P.APPROACH) & ~self.arrived & ~self.turned, self.heading, yaw_target)
         return self.action(
             target, max_speed, yaw_target, gripper, arm_target=arm, yaw_rate_feedforward=feedforward, yaw_gain=yaw_gain,
             velocity_override=(drive | (phase == P.UNWIND), override),

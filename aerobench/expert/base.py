@@ -43,6 +43,15 @@ class SkillExpert:
         self.phase[env_idx] = 0
         self.timer[env_idx] = 0
 
+    def held_depth(self, env_idx: torch.Tensor) -> torch.Tensor:
+        """`(len(env_idx),)` how far the held object's bottom hangs below the tool centre point (m), for the route
+        planner's clearance: measured, since where the object sits in the fingers depends on the grasp (the
+        arm's top-down grasp holds a tall box up to 6 cm higher on it than its nominal grasp point); never less than
+        the nominal grasp height."""
+        nominal = self.env.target_grasp_point[env_idx, 2]
+        measured = (self.tcp() - self.object_position())[env_idx, 2]
+        return torch.maximum(nominal, measured)
+
     def reaches_in(self, pick) -> torch.Tensor:
         """`(N,)` envs where the arm platform picks with `pick` (a pick evaluator) from the side, reaching into an
         enclosure (a fridge shelf) with the forearm level; everywhere else the arm picks top down, as the gripper does."""

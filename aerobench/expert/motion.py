@@ -4,6 +4,8 @@ interface, in normalized action units. Pure torch, `(N, ...)` tensors.
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from ..envs.observations import wrap_angle
@@ -11,6 +13,9 @@ from ..envs.platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS
 
 POSITION_GAIN = 1.2  # 1/s: velocity command per metre of error (the flight tests' waypoint follower)
 YAW_GAIN = 1.5  # 1/s
+# A turn in place counts as done within this of its heading: the planner checked the route at that heading, and an
+# arm 0.47 m long swept through a turn in flight hits what the route passes (a door).
+TURN_TOLERANCE_RAD = math.radians(8.0)
 
 
 def velocity_towards(error: torch.Tensor, max_speed: torch.Tensor | float, gain: float = POSITION_GAIN) -> torch.Tensor:

@@ -9,8 +9,8 @@ import numpy as np
 import torch
 
 from .base import SkillExpert
-from .motion import wrap_angle
-from .planner import planner_for
+from .motion import TURN_TOLERANCE_RAD, wrap_angle
+from .planner import can_turn_in_place, planner_for, route_at_some_heading
 from .route import RouteFollower
 
 CRUISE_SPEED_MPS = 0.5
@@ -25,10 +25,10 @@ CARRY_ACCEL_MPS2 = 0.5
 BACK_OUT_M = 0.45
 # The heading is held while flying (the planner checks the footprint at it). When no route exists at the current
 # heading (an arm 0.47 m long pointing into a fridge), the expert turns in place to the first of these that has one:
-# towards the goal, then the room axes; the turn itself must keep the footprint clear of the scene.
-TURN_STEP_RAD = math.radians(15.0)
-TURN_MIN_CLEARANCE_M = 0.03
-TURN_TOLERANCE_RAD = math.radians(8.0)
+# towards the goal, then the current heading's quarter turns, then the room axes (furniture and its goals are
+# aligned with the walls: a tall box hanging over an open drawer fits beside the counter only square to it); the turn
+# itself must keep the footprint clear of the scene.
+ROOM_AXES = [0.0, math.pi / 2, math.pi, -math.pi / 2]
 ARM_FOLDED_RAD = 0.15  # every arm joint this close to the carry pose: folded
 
 
@@ -38,7 +38,8 @@ class NavPhase(IntEnum):
 
 
 class NavExpert(SkillExpert):
-    """`carrying_depth`: how far a held object hangs below the gripper (for the planner's clearance); `after_pick`:
+    """`carrying_depth`: how far a held object hangs below the gripper (for the planner's clearance; measured at reset,
+    this nominal depth at least); `after_pick`:
     the evaluator of the pick this stage follows (its `enclosed` envs back out first)."""
 
     def __init__(self, env, evaluator, carrying_depth: float = 0.0, after_pick=None):
@@ -46,6 +47,7 @@ class NavExpert(SkillExpert):
         self.after_pick = after_pick
         self.route = RouteFollower(self.n, self.device)
         self.carrying_depth = carrying_depth
+        self.depth = torch.full((self.n,), carrying_depth, device=self.device)  # per env, measured at reset
         self.heading = torch.zeros(self.n, device=self.device)  # held while flying the route
         self.start_yaw = torch.zeros(self.n, device=self.device)  # held while backing out
         self.turn_at = torch.zeros(self.n, 3, device=self.device)  # where the route starts (after backing out)
@@ -58,6 +60,8 @@ class NavExpert(SkillExpert):
 
     def reset(self, env_idx):
         super().reset(env_idx)
+        if self.carrying_depth > 0:
+            self.depth[env_idx] = self.held_depth(env_idx)
         state = self.state()
         self.start_yaw[env_idx] = state.yaw[env_idx]
         self.velocity_command[env_idx] = state.velocity[env_idx]  # a ramp starts from how the drone moves now
@@ -81,24 +85,15 @@ class NavExpert(SkillExpert):
         """The current heading and its route, or else the first candidate heading with a route that the drone can
         also turn to in place at `start`."""
         toward = math.atan2(goal[1] - start[1], goal[0] - start[0])
-        candidates = [heading, toward] + [heading + k * math.pi / 2 for k in (1, -1, 2)]
-        for h in candidates:
-            route = self._planner(i, h).plan(start, goal)
-            if route is not None and (h == heading or self._can_turn(i, start, heading, h)):
-                return h, route
-        return heading, None
+        candidates = [heading, toward] + [heading + k * math.pi / 2 for k in (1, -1, 2)] + ROOM_AXES
+        planner_at = lambda h: self._planner(i, h)  # noqa: E731
+        return route_at_some_heading(
+            planner_at, start, goal, candidates, lambda h: h == heading or can_turn_in_place(planner_at, start, heading, h)
+        )
 
     def _planner(self, i: int, heading: float):
         arm_q = None if self.carry_pose is None else self.carry_pose[i]
-        return planner_for(self.env, i, self.carrying_depth, heading=heading, arm_q=arm_q)
-
-    def _can_turn(self, i: int, at: np.ndarray, a: float, b: float) -> bool:
-        delta = math.remainder(b - a, 2 * math.pi)
-        steps = max(1, int(abs(delta) / TURN_STEP_RAD) + 1)
-        return all(
-            self._planner(i, a + delta * k / steps).clearance(at) > TURN_MIN_CLEARANCE_M
-            for k in range(1, steps + 1)
-        )
+        return planner_for(self.env, i, float(self.depth[i]), heading=heading, arm_q=arm_q)
 
     def act(self):
         state = self.state()

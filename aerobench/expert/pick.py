@@ -22,7 +22,7 @@ from ..envs.control.arm import arm_point_positions_body
 from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from .base import SkillExpert
-from .motion import wrap_angle
+from .motion import TURN_TOLERANCE_RAD, wrap_angle
 from .planner import planner_for
 from .route import RouteFollower
 
@@ -54,8 +54,7 @@ BACK_OFF_M = 0.45  # a pick after another stage first backs this far away, keepi
 STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point along the grasp heading, the arm
 # still outside whatever holds the object (a fridge shelf): the planner needs the route's end clear of the scene
 ROUTE_SPEED_MPS = 0.3
-TURN_TOLERANCE_RAD = math.radians(8.0)  # after backing off, turn to the grasp heading in place: the planner checks
-# the route at that heading, and an arm 0.47 m long swept through a turn in flight hits what the route passes (a door)
+# after backing off, the pick turns to the grasp heading in place (within TURN_TOLERANCE_RAD) before its route
 ROUTE_ARRIVED_M = 0.05
 FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
 

@@ -28,6 +28,12 @@ TOUCH_ZONE_M = 0.04
 PRESS_SPEED_MPS = 0.04  # on the surface: keep sinking gently until the support carries the object
 SET_DOWN_STEPS = 3  # control steps of support contact before the drone stops pressing
 STOPPED_MPS = 0.008  # "stop before release"
+# The arm's fingertips reach 3 cm below its grasp point: a short object (the 33 mm tuna can) picked from a table is
+# held with its bottom level with the tips, and on the support the tips carry the press while the object hangs a
+# fraction of a millimetre above it (no support contact, no set-down). Stalled there (the object's bottom within
+# STALL_HEIGHT_M of the goal, the drone stopped, both observable) for STALL_STEPS, the expert lets go.
+STALL_HEIGHT_M = 0.001
+STALL_STEPS = 15
 STOPPED_STEPS = 6  # further control steps of support contact before the release
 OPEN_STEPS = 12
 HOLD_SPEED_MPS = 0.05  # while the fingers open: enough to pull a few mm of drift back, too slow to shove the object
@@ -52,6 +58,7 @@ class PlaceExpert(SkillExpert):
         self.heading = torch.zeros(self.n, device=self.device)
         self.release_point = torch.zeros(self.n, 3, device=self.device)
         self.stop_point = torch.zeros(self.n, 3, device=self.device)
+        self.stall_steps = torch.zeros(self.n, dtype=torch.long, device=self.device)
         self.route = RouteFollower(self.n, self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
         # The arm platform places in the pose it carried the object in (`carry_arm_pose`): unfolding to the working
@@ -65,15 +72,16 @@ class PlaceExpert(SkillExpert):
 
     def reset(self, env_idx):
         super().reset(env_idx)
+        self.stall_steps[env_idx] = 0
         state = self.state()
         self.heading[env_idx] = state.yaw[env_idx]
         if self.has_arm:
             self.arm_pose[env_idx] = self.carry_arm_pose(self.pick)[env_idx]
         airframe_goal = self.above_goal_tcp() + (state.position - self.tcp())
-        depth = float(self.env.target_grasp_point[:, 2].max())
+        depth = dict(zip(env_idx.tolist(), self.held_depth(env_idx).tolist()))
         for i in env_idx.tolist():
             arm_q = None if self.arm_pose is None else self.arm_pose[i]
-            route = planner_for(self.env, i, depth, arm_q=arm_q).plan(state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy())
+            route = planner_for(self.env, i, depth[i], arm_q=arm_q).plan(state.position[i].cpu().numpy(), airframe_goal[i].cpu().numpy())
             self.planned[i] = route is not None
             self.route.set(i, route if route is not None else [airframe_goal[i].cpu().numpy()])
 
@@ -93,10 +101,13 @@ class PlaceExpert(SkillExpert):
         # Release on what the task state shows (Place `progress` = the set-down time), never on a private timer: a
         # policy that sees the same inputs can learn when to open (docs/experiments.md, "What fails: the release").
         set_down_steps = info["set_down_steps"]
+        stalled = (self.phase == P.DESCEND) & ((obj[:, 2] - goal[:, 2]) < STALL_HEIGHT_M) & (speed < STOPPED_MPS)
+        self.stall_steps = torch.where(stalled, self.stall_steps + 1, torch.zeros_like(self.stall_steps))
         self.goto(P.STOP, set_down_steps == 0, P.DESCEND)  # the support let go: press again
         stopped = self.goto(P.DESCEND, set_down_steps >= SET_DOWN_STEPS, P.STOP)
         self.stop_point = torch.where(stopped[:, None], tcp, self.stop_point)
         opened = self.goto(P.STOP, (speed < STOPPED_MPS) & (set_down_steps >= SET_DOWN_STEPS + STOPPED_STEPS), P.OPEN)
+        opened |= self.goto(P.DESCEND, self.stall_steps >= STALL_STEPS, P.OPEN)
         self.release_point = torch.where(opened[:, None], tcp, self.release_point)
         self.goto(P.OPEN, self.timer >= OPEN_STEPS, P.RETREAT)
         risen = tcp[:, 2] >= self.release_point[:, 2] + RETREAT_HEIGHT_M - 0.02

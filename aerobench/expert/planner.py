@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch
@@ -33,6 +33,9 @@ MAX_EXPANSIONS = 200_000
 START_SKIP_M = 0.10  # the drone is at the start: its first 10 cm are not re-checked
 HANG_RADIUS_M = 0.06  # the gripper (and a held object) below the drone, as a small ring
 MIN_VERTICAL_CLEARANCE_M = 0.02  # a climb / descent next to a wall may keep less than CLEARANCE_M, never less than this
+# A turn in place is checked every TURN_STEP_RAD; the footprint must keep TURN_MIN_CLEARANCE_M from the scene.
+TURN_STEP_RAD = math.radians(15.0)
+TURN_MIN_CLEARANCE_M = 0.03
 
 
 def boxes_array(boxes: Sequence[Box]) -> np.ndarray:
@@ -256,3 +259,26 @@ def planner_for(
     return RoutePlanner(
         boxes, env.workspace_lo[env_index].cpu().numpy(), env.workspace_hi[env_index].cpu().numpy(), reach, below, footprint
     )
+
+
+def can_turn_in_place(planner_at: Callable[[float], RoutePlanner], at: np.ndarray, a: float, b: float) -> bool:
+    """Whether the footprint stays clear of the scene while the drone turns in place at `at` from heading a to b
+    (the shorter way); `planner_at(heading)` gives the planner for that heading."""
+    delta = math.remainder(b - a, 2 * math.pi)
+    steps = max(1, int(abs(delta) / TURN_STEP_RAD) + 1)
+    return all(planner_at(a + delta * k / steps).clearance(at) > TURN_MIN_CLEARANCE_M for k in range(1, steps + 1))
+
+
+def route_at_some_heading(
+    planner_at: Callable[[float], RoutePlanner], start: np.ndarray, goal: np.ndarray, candidates: Sequence[float],
+    turn_ok: Callable[[float], bool],
+) -> tuple[float, list[np.ndarray] | None]:
+    """The first candidate heading with a route from `start` to `goal` flown at that heading and for which
+    `turn_ok(heading)` holds (the turn in place the expert makes to or from it), with its route; else the first
+    candidate and None. The footprint of a drone that holds its heading is narrower than the any-heading disk, but
+    one heading may have no route where another does (an arm reaching towards a counter's edge)."""
+    for h in candidates:
+        route = planner_at(h).plan(start, goal)
+        if route is not None and turn_ok(h):
+            return h, route
+    return candidates[0], None

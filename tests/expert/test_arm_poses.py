@@ -8,6 +8,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import torch
+from mani_skill.utils.structs.pose import Pose
 
 import aerobench.envs  # noqa: F401
 from aerobench.envs.control.arm import arm_point_positions_body
@@ -88,4 +89,24 @@ def test_a_fridge_pick_reaches_in_level_and_is_carried_folded():
     assert math.isclose(sum(arm.top_down_pose_rad[:2]), math.pi / 2, abs_tol=0.01)
     footprint = planner_for(base, 0, heading=0.0, arm_q=place.arm_pose[0]).footprint
     assert np.isfinite(footprint).all()
+    env.close()
+
+
+def test_the_transport_plans_for_where_the_top_down_grasp_holds_a_tall_box():
+    # the top-down grasp holds the cracker box 6 cm above its nominal grasp point (the palm clears its top), so the box
+    # hangs that much deeper under the tool centre point than the nominal grasp height says: the planner must know
+    env, base, pick, nav, place = _chain_experts("open_pick_nav_place_close", 20000001, "cracker_box")
+    evaluator = base.evaluators[1]
+    assert not bool(evaluator.enclosed[0])
+    evaluator.begin(ENV0)
+    ctx = base.current_step_context()
+    raised = evaluator.grasp_target(ctx.tcp)[0] - base.target.pose.p[0]  # the grasp point above the box's bottom
+    nominal = float(base.target_grasp_point[0, 2])
+    assert float(raised[2]) > nominal + 0.05
+    pose = base.target.pose
+    base.target.set_pose(Pose.create_from_pq(p=(ctx.tcp[0] - raised)[None], q=pose.q))  # held at that grasp
+    base._signals_step = -1  # the step context again, with the box in the fingers
+    nav.reset(ENV0)
+    place.reset(ENV0)
+    assert math.isclose(float(nav.depth[0]), float(raised[2]), abs_tol=1e-3)
     env.close()
