@@ -83,6 +83,7 @@ class ArticulationExpert(SkillExpert):
         self.is_drawer = torch.zeros(self.n, dtype=torch.bool, device=self.device)
         self.reach_pose = torch.zeros(self.n, 3, device=self.device)
         self.unfolded = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # the retract has unfolded the arm
+        self.hold_point = torch.zeros(self.n, 3, device=self.device)  # airframe target once unfolded
         self.hinge_sign = torch.ones(self.n, device=self.device)  # world yaw change per unit of door angle
         self.pinch_height = torch.zeros(self.n, device=self.device)
 
@@ -176,7 +177,13 @@ class ArticulationExpert(SkillExpert):
         # the arm keeps its reach pose until half the retract is flown: unfolding at the handle raised the wrist to
         # within 3 cm of the counter's edge above the drawer (the clearance check's limit)
         backed = torch.linalg.norm(tcp - self.release_point, dim=-1) > RETRACT_M / 2
-        self.unfolded |= ((phase == P.RETRACT) & backed) | (phase == P.SETTLE)  # latched: unfolding moves the TCP
+        unfolding = (((phase == P.RETRACT) & backed) | (phase == P.SETTLE)) & ~self.unfolded
+        self.unfolded |= unfolding  # latched: unfolding moves the TCP
+        # ... and from then on the airframe, not the tool centre point, is held where the retract ends: the unfolded
+        # TCP stands 0.2 m higher and 0.47 m ahead, so a TCP target sank the drone towards the counter and its heading's
+        # slow swing (the arm's 0.12 N m yaw) walked it round in circles (close clearance failures, docs/expert.md)
+        back = self.release_point + RETRACT_M * self.release_normal
+        self.hold_point = torch.where(unfolding[:, None], state.position + (back - tcp), self.hold_point)
         arm = torch.where(self.unfolded[:, None], working, self.reach_pose)
         drive_speed = torch.where(self.is_drawer, DRIVE_SPEED_MPS["drawer"], DRIVE_SPEED_MPS["fridge"])
         direction = normal if opening else -normal
@@ -186,8 +193,9 @@ class ArticulationExpert(SkillExpert):
         target = torch.where((phase == P.INSERT)[:, None] | (phase == P.PINCH)[:, None], point, target)
         target = torch.where((phase == P.DRIVE)[:, None], tcp + direction, target)  # far along: speed sets the pace
         target = torch.where((phase == P.RELEASE)[:, None], tcp, target)
-        back = self.release_point + RETRACT_M * self.release_normal
-        target = torch.where((phase == P.RETRACT)[:, None] | (phase == P.SETTLE)[:, None], back, target)
+        leaving = (phase == P.RETRACT) | (phase == P.SETTLE)
+        target = torch.where(leaving[:, None], back, target)
+        target = torch.where((leaving & self.unfolded)[:, None], self.hold_point + (tcp - state.position), target)
         max_speed = torch.full((self.n,), APPROACH_SPEED_MPS, device=self.device)
         max_speed = torch.where((phase == P.APPROACH) & last, torch.full_like(max_speed, 0.15), max_speed)
         max_speed = torch.where((phase == P.INSERT) | (phase == P.PINCH), torch.full_like(max_speed, INSERT_SPEED_MPS), max_speed)
