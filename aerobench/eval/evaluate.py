@@ -153,16 +153,34 @@ def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int
         return run_shard(config, folder, shard)
 
 
+def exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
+    """Worker-process initializer: a daemon thread ends the worker once the process that started it is gone. A
+    driver killed mid-run (Ctrl-C twice, `kill`) otherwise leaves its workers running their shards to the end, still
+    appending episodes to the shard files that a re-run of the same command is resuming."""
+    import os
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(poll_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="exit-with-parent").start()
+
+
 def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
     """Every shard in a worker process (spawned: SAPIEN and torch state is not fork-safe); `on_episode` hears of
     each shard's episodes after it finished (the counts are in its records)."""
     import multiprocessing
+    import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     k = config.workers
     out.mkdir(parents=True, exist_ok=True)
     folders = [out / "shards" / f"{i}-of-{k}" for i in range(k)]
-    with ProcessPoolExecutor(k, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(k, mp_context=multiprocessing.get_context("spawn"), initializer=exit_with_parent,
+                             initargs=(os.getpid(),)) as pool:
         futures = {pool.submit(_run_shard_in_worker, config, folder, (i, k)): i for i, folder in enumerate(folders)}
         for future in as_completed(futures):
             future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here

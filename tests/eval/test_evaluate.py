@@ -4,6 +4,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -156,3 +157,38 @@ def test_video_shows_the_third_person_view_above_the_onboard_cameras(tmp_path):
     assert results["videos"] == ["videos/episode_000000.mp4"]
     frames = iio.imread(tmp_path / "eval" / "videos" / "episode_000000.mp4")
     assert frames.shape[1:] == (384 + 128, 384, 3) and frames.shape[0] >= 1
+
+
+_ORPHAN_SCRIPT = """
+import multiprocessing, os, signal, time
+from concurrent.futures import ProcessPoolExecutor
+from aerobench.eval.evaluate import exit_with_parent
+
+if __name__ == "__main__":
+    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=exit_with_parent,
+                               initargs=(os.getpid(), 0.1))
+    worker = pool.submit(os.getpid).result()
+    pool.submit(time.sleep, 120)  # a shard still running
+    print(worker, flush=True)
+    os.kill(os.getpid(), signal.SIGKILL)  # the driver killed mid-run
+"""
+
+
+def _running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in state  # a zombie has exited (nobody reaped it yet)
+
+
+def test_eval_workers_exit_when_the_driver_is_killed(tmp_path):
+    # an orphaned worker went on appending episodes to the shard files a re-run of the same command was resuming
+    script = tmp_path / "driver.py"
+    script.write_text(_ORPHAN_SCRIPT)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    worker = int(done.stdout.split()[0])
+    deadline = time.monotonic() + 20
+    while _running(worker) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _running(worker), f"worker {worker} outlived its killed driver"
