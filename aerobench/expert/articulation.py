@@ -42,7 +42,12 @@ DRAWER_PULL_ACCEL = 1.0  # m/s^2: 2.5 N of drawer friction
 HEIGHT_GAIN = 1.5  # 1/s
 SPEED_GAIN = 4.0  # 1/s: extra acceleration per m/s below the drive speed
 MAX_PULL_ACCEL = 4.0
-LATERAL_GAIN = 2.0  # 1/s: damp sideways drift off the door's normal
+LATERAL_GAIN = 2.0  # 1/s: sideways velocity tracking while driving
+# Pushing a door shut through a pinched handle is pushing a stick: the door's 7 N reaction at the tool centre point,
+# 0.45 m ahead, turns the drone away from the normal faster than its rotor-drag yaw torque can turn it back. With the
+# tool centre point held by the handle, the airframe's sideways position *is* its heading about the handle, so the
+# drive steers the airframe onto the line through the handle along the normal (and sweeps it round with the door).
+CENTRE_GAIN = 3.0  # 1/s: sideways velocity per metre off that line
 UNWOUND_TILT_RAD = math.radians(4.0)
 UNWIND_MAX_STEPS = 40
 DRIVE_YAW_GAIN = 1.5  # 1/s: pinched, the door damps the heading, so it can follow the door's turn closely
@@ -211,19 +216,22 @@ class ArticulationExpert(SkillExpert):
         door_rate = ev._per_env([f.get_qvel()[:, 0] for f in ev.fixtures])
         feedforward = torch.where((phase == P.DRIVE) & ~self.is_drawer, door_rate * self.hinge_sign, torch.zeros_like(door_rate))
         yaw_gain = torch.where((phase == P.DRIVE) | (phase == P.UNWIND), DRIVE_YAW_GAIN, self.yaw_gain)
-        # Unwind: the door's friction still holds the handle; command the velocity that zeroes the velocity loop's
-        # horizontal acceleration (3 e_v + xi = 0, privileged xi), so the pull fades before the fingers open.
         xi = self.env.agent.body_controller.memory.xi
-        unwind = self._horizontal_velocity_for(torch.zeros_like(xi[:, :2]), state.velocity, xi)
         # The door's pull direction turns as it swings, faster than the velocity loop's world-frame integrator can
         # follow; so for the hinge the expert commands the horizontal *acceleration* it wants along the current normal
         # (a friction feedforward plus speed tracking), converted through the loop's law with the privileged xi.
         speed_along = (state.velocity[:, :2] * direction[:, :2]).sum(-1)
         lateral = state.velocity[:, :2] - speed_along[:, None] * direction[:, :2]
+        sideways = self._centring_velocity(point, yaw_target, feedforward, state.position)
+        sideways = sideways - (sideways * direction[:, :2]).sum(-1, keepdim=True) * direction[:, :2]
         friction = torch.where(self.is_drawer, DRAWER_PULL_ACCEL, HINGE_PULL_ACCEL)
         accel = (friction + SPEED_GAIN * (drive_speed - speed_along)).clamp(0.0, MAX_PULL_ACCEL)
-        wanted = accel[:, None] * direction[:, :2] - LATERAL_GAIN * lateral
+        wanted = accel[:, None] * direction[:, :2] + LATERAL_GAIN * (sideways - lateral)
         pull = self._horizontal_velocity_for(wanted, state.velocity, xi)
+        # Unwind: the door's friction still holds the handle; command no acceleration along the normal (3 e_v + xi = 0
+        # there, privileged xi), so the pull fades before the fingers open, and keep centring sideways: the sweep's
+        # 0.2 m/s round the handle would otherwise carry the drone on towards whatever stands beside the door.
+        unwind = self._horizontal_velocity_for(LATERAL_GAIN * (sideways - lateral), state.velocity, xi)
         # With the shoulder limp (contact mode) the arm is a free strut: the airframe, not the tool centre point,
         # must hold its height, or pushing folds the arm and the drone climbs into the fixture.
         self.pinch_height = torch.where(started_drive, state.position[:, 2], self.pinch_height)
@@ -236,6 +244,13 @@ class ArticulationExpert(SkillExpert):
             target, max_speed, yaw_target, gripper, arm_target=arm, yaw_rate_feedforward=feedforward, yaw_gain=yaw_gain,
             velocity_override=(drive | (phase == P.UNWIND), override),
         )
+
+    def _centring_velocity(self, point: torch.Tensor, facing: torch.Tensor, door_yaw_rate: torch.Tensor, position: torch.Tensor) -> torch.Tensor:
+        """Horizontal airframe velocity `(N, 2)` that keeps it where a drone facing the door with its tool centre
+        point at the handle would be: that point's sweep with the door plus a pull back onto it."""
+        offset = -self._tcp_offset_world(facing, self.env.agent.arm_qpos())[:, :2]  # handle -> airframe
+        sweep = door_yaw_rate[:, None] * torch.stack([-offset[:, 1], offset[:, 0]], -1)
+        return sweep + CENTRE_GAIN * (point[:, :2] + offset - position[:, :2])
 
     @staticmethod
     def _horizontal_velocity_for(accel_xy: torch.Tensor, velocity: torch.Tensor, xi: torch.Tensor) -> torch.Tensor:
