@@ -8,6 +8,7 @@ from enum import IntEnum
 import numpy as np
 import torch
 
+from ..envs.skills.nav import NAV_REACH_M
 from .base import SkillExpert
 from .motion import TURN_TOLERANCE_RAD, wrap_angle
 from .planner import can_turn_in_place, planner_for, route_at_some_heading
@@ -30,6 +31,11 @@ BACK_OUT_M = 0.45
 # itself must keep the footprint clear of the scene.
 ROOM_AXES = [0.0, math.pi / 2, math.pi, -math.pi / 2]
 ARM_FOLDED_RAD = 0.15  # every arm joint this close to the carry pose: folded
+# A chain's transport ends 0.5 m above the place's anchor whatever hangs from the gripper: a tall box (the sugar box,
+# 13.5 cm under the arm's grasp point) can stand on the counter's edge there, leaving no clear descent to the goal and
+# no route at all (the expert then flew straight into a wall). Where the goal is blocked the route ends a little
+# higher, still within the nav's reach of the target.
+GOAL_LIFTS_M = (0.0, 0.3 * NAV_REACH_M, 0.6 * NAV_REACH_M)
 
 
 class NavPhase(IntEnum):
@@ -83,13 +89,18 @@ class NavExpert(SkillExpert):
 
     def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, heading: float) -> tuple[float, list | None]:
         """The current heading and its route, or else the first candidate heading with a route that the drone can
-        also turn to in place at `start`."""
+        also turn to in place at `start`; to the goal, or else to the first of `GOAL_LIFTS_M` above it that has one."""
         toward = math.atan2(goal[1] - start[1], goal[0] - start[0])
         candidates = [heading, toward] + [heading + k * math.pi / 2 for k in (1, -1, 2)] + ROOM_AXES
         planner_at = lambda h: self._planner(i, h)  # noqa: E731
-        return route_at_some_heading(
-            planner_at, start, goal, candidates, lambda h: h == heading or can_turn_in_place(planner_at, start, heading, h)
-        )
+        for lift in GOAL_LIFTS_M:
+            found, route = route_at_some_heading(
+                planner_at, start, goal + np.array([0.0, 0.0, lift]), candidates,
+                lambda h: h == heading or can_turn_in_place(planner_at, start, heading, h),
+            )
+            if route is not None:
+                return found, route
+        return found, None
 
     def _planner(self, i: int, heading: float):
         arm_q = None if self.carry_pose is None else self.carry_pose[i]

@@ -87,3 +87,21 @@ def test_box_prefilter_matches_the_full_check(heading):
     results = [filtered.segment_free(a, b) for a, b in segments]
     assert results == [unfiltered.segment_free(a, b) for a, b in segments]
     assert any(results) and not all(results)
+
+
+def test_a_transport_whose_goal_is_blocked_for_what_hangs_below_ends_a_little_higher():
+    # A counter whose top (1.0 m) the hanging object reaches at the goal: no descent, so no route to the goal itself;
+    # the nav expert ends its route at the first lift within the nav's reach that has one (a tall box over a drawer)
+    from aerobench.envs.skills.nav import NAV_REACH_M
+    from aerobench.expert.nav import GOAL_LIFTS_M, NavExpert
+
+    counter = [0.0, 1.0, 0.5, 0.6, 0.3, 0.5, 0.0]
+    start, goal = np.array([0.0, -1.5, 1.4]), np.array([0.0, 1.0, 1.0 + BELOW - 0.01])
+    p = planner([counter])
+    assert p.plan(start, goal) is None
+    nav = type("Nav", (), {"_planner": lambda self, i, h: p})()
+    heading, route = NavExpert._plan(nav, 0, start, goal, 0.0)
+    assert route is not None and heading == 0.0
+    lift = route[-1][2] - goal[2]
+    assert min(abs(lift - x) for x in GOAL_LIFTS_M[1:]) < 1e-9 and lift < NAV_REACH_M
+    assert np.allclose(route[-1][:2], goal[:2])
