@@ -52,7 +52,10 @@ ENCLOSED_LIFT_BACK_M = 0.06
 ENCLOSED_OVERREACH_M = 0.01  # ... and never deeper than the grasp planned at the start (a pushed object is let go)
 BACK_OFF_M = 0.45  # a pick after another stage first backs this far away, keeping its heading, then turns
 STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point along the grasp heading, the arm
-# still outside whatever holds the object (a fridge shelf): the planner needs the route's end clear of the scene
+# still outside whatever holds the object (a fridge shelf): the planner needs the route's end clear of the scene.
+# Where that point is not (an object on a counter against a wall, the grasp heading facing the wall: 0.3 m back is in
+# it) a nearer one is tried; with no route at all the expert flew straight and hit the wall.
+STAGING_TRIES_M = (STAGING_M, STAGING_M / 2, 0.0)
 ROUTE_SPEED_MPS = 0.3
 # after backing off, the pick turns to the grasp heading in place (within TURN_TOLERANCE_RAD) before its route
 ROUTE_ARRIVED_M = 0.05
@@ -96,7 +99,8 @@ class PickExpert(SkillExpert):
 
     def _plan_route(self, env_idx: torch.Tensor) -> None:
         """Airframe waypoints: straight back along the current heading, then the planner's route to a staging point
-        `STAGING_M` before the pre-grasp point along the grasp heading (APPROACH flies the rest straight)."""
+        `STAGING_M` (or the first of `STAGING_TRIES_M` with a route) before the pre-grasp point along the grasp
+        heading (APPROACH flies the rest straight)."""
         state = self.state()
         # the tool centre point's offset from the airframe once turned to the grasp heading (and, with the arm, in
         # the pose it picks in)
@@ -106,14 +110,19 @@ class PickExpert(SkillExpert):
         else:
             offset = heading_frame(self.tcp() - state.position, state.yaw - self.heading)
         along = self._forward()
-        staging = self.pre_grasp(self.grasp_point()) - offset - STAGING_M * along
+        at_pre_grasp = self.pre_grasp(self.grasp_point()) - offset
         back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
         self.back_yaw[env_idx] = state.yaw[env_idx]
         self.turned[env_idx] = False
         for i in env_idx.tolist():
-            start, goal = (state.position[i] - back[i]).cpu().numpy(), staging[i].cpu().numpy()
+            start = (state.position[i] - back[i]).cpu().numpy()
             arm_q = self.pick_arm_pose(self.evaluator)[i] if self.has_arm else None
-            route = planner_for(self.env, i, heading=float(self.heading[i]), arm_q=arm_q).plan(start, goal)
+            planner = planner_for(self.env, i, heading=float(self.heading[i]), arm_q=arm_q)
+            for distance in STAGING_TRIES_M:
+                goal = (at_pre_grasp[i] - distance * along[i]).cpu().numpy()
+                route = planner.plan(start, goal)
+                if route is not None:
+                    break
             self.route.set(i, [start] + (route if route is not None else [goal]))
         self.phase[env_idx] = PickPhase.ROUTE
 

@@ -15,6 +15,7 @@ from aerobench.expert.articulation import OPEN_FOR_REACH_IN, ArticulationExpert
 from aerobench.expert.nav import BACK_OUT_M, NavExpert
 from aerobench.expert.pick import BACK_OFF_M, STAGING_M, PickExpert, PickPhase
 from aerobench.expert.planner import planner_for
+from aerobench.rollout.runner import SEED_STRIDE
 
 ENV0 = torch.tensor([0])
 
@@ -78,3 +79,30 @@ def test_the_transport_after_a_fridge_pick_backs_out_then_flies_with_the_arm_fol
     assert np.linalg.norm(folded[:, :2], axis=-1).max() < disks + 0.08
     assert np.linalg.norm(working[:, :2], axis=-1).max() > 0.5
     env.close()
+
+
+def test_the_arm_grasps_top_down_from_the_side_with_room_for_its_rotors():
+    # drawer chain, eval seed 22, episode 74: a sugar box on a counter against a wall; the grasp heading nearer the
+    # drone's yaw after the opening stood the airframe 5 cm into the wall, and the pick flew into it
+    from aerobench.envs.skills.pick import TOP_DOWN_ROOM_M, grasp_heading
+
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement", chain="open_pick_nav_place_close")
+    try:
+        env.reset(seed=22 * SEED_STRIDE + 74, options={"reconfigure": True, "objects": ["sugar_box"]})
+        base = env.unwrapped
+        controller = ExpertController(base)
+        controller.reset(torch.arange(1))
+        for _ in range(600):
+            env.step(controller.act())
+            if int(controller.stage[0]) == 1:
+                break
+        pick = controller.experts[1].evaluator
+        assert int(controller.stage[0]) == 1 and bool(base.platform.arm is not None) and not bool(pick.enclosed[0])
+        q = base.target.pose.q
+        nearer = grasp_heading(2 * torch.atan2(q[:, 3], q[:, 0]), controller.experts[1].state().yaw, pick.is_round)
+        assert abs(math.remainder(float(pick.heading[0] - nearer[0]), 2 * math.pi)) > 3.0  # the other way round
+        room = lambda h: float(pick._roomiest_top_down_heading(h)[0])  # noqa: E731
+        assert room(pick.heading) == float(pick.heading[0])  # the planned heading has room: kept
+        assert room(nearer) != float(nearer[0])  # the nearer one had not
+    finally:
+        env.close()

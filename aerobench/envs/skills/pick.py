@@ -9,7 +9,9 @@ from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs.pose import Pose
 
 from ..checks import FailureCause, consecutive
+from ..control.arm import arm_point_positions_body
 from ..control.so3 import quat_wxyz_to_matrix
+from ..geometry import level_drone_points, point_box_distance
 from ..observations import wrap_to_period
 from ..scenes import articulated
 from ..tasks import instruction
@@ -35,6 +37,11 @@ ENCLOSED_EDGE_MARGIN_M = 0.005  # the object's front face this far behind the sh
 # taller than 12 cm (the master chef can, the cracker and sugar boxes) meets the palm, so the arm grasps those higher,
 # its palm this far above the object's top.
 TOP_DOWN_PALM_MARGIN_M = 0.015
+# The arm's top-down grasp point is 0.24 m ahead of the airframe, so of a box's two grasp headings the one nearer the
+# drone's yaw can stand the airframe in a wall behind the object (an object on a counter against a wall: rotors 5 cm
+# into it, and the pick flew into the wall). That heading is kept unless its rotor disks would come closer than this
+# to the scene; then the grasp heading with the most room is planned.
+TOP_DOWN_ROOM_M = 0.08
 
 
 def enclosed_reach_m(platform, yaw_noise: float = ENCLOSED_YAW_NOISE_RAD) -> tuple[float, float, float]:
@@ -132,7 +139,28 @@ class PickEvaluator(SkillEvaluator):
         reference = torch.where(self.enclosed, self.inward, self.env.agent.airframe_state().yaw)
         planned = grasp_heading(object_yaw, reference, self.is_round)
         planned = torch.where(self.enclosed & self.is_round, self.inward, planned)  # straight in through the front
+        if self.env.platform.arm is not None:
+            planned = torch.where(self.enclosed, planned, self._roomiest_top_down_heading(planned))
         self.heading[env_idx] = planned[env_idx]
+
+    def _roomiest_top_down_heading(self, planned: torch.Tensor) -> torch.Tensor:
+        """`(N,)` the planned grasp heading, or where the arm platform's airframe would stand within TOP_DOWN_ROOM_M of
+        the scene above the object at it, the equivalent grasp heading (by the object's symmetry) with the most room."""
+        env, arm = self.env, self.env.platform.arm
+        grasp = arm_point_positions_body(torch.tensor([arm.top_down_pose_rad], device=self.device), arm)["grasp"][0]
+        turns = torch.arange(4, device=self.device)
+        headings = planned[:, None] + turns[None] * self.heading_period[:, None]  # (N, 4); repeats for boxes
+        c, s = torch.cos(headings), torch.sin(headings)
+        centre = env.target.pose.p[:, None, :] - torch.stack(
+            [c * grasp[0] - s * grasp[1], s * grasp[0] + c * grasp[1], grasp[2].expand_as(c)], -1
+        )
+        points = level_drone_points(centre, headings, env.proxy_points)  # (N, 4, P, 3)
+        n, k, p = points.shape[:3]
+        boxes = env.obstacle_boxes(torch.arange(n, device=self.device))
+        room = point_box_distance(points.reshape(n, k * p, 3), boxes).min(-1).values.reshape(n, k, p).min(-1).values
+        room = room - env.proxy_radius
+        best = headings.gather(1, room.argmax(1, keepdim=True))[:, 0]
+        return torch.where(room[:, 0] >= TOP_DOWN_ROOM_M, planned, best)
 
     def grasp_target(self, tcp: torch.Tensor, pose: Pose | None = None, R: torch.Tensor | None = None) -> torch.Tensor:
         """Where the tool centre point grasps `(N, 3)`: the object's planned grasp point; for the bowl, the rim point
