@@ -14,7 +14,7 @@ from enum import IntEnum
 import torch
 
 from .base import SkillExpert
-from .motion import wrap_angle
+from .motion import POSITION_GAIN, wrap_angle
 from .planner import planner_for
 from .route import RouteFollower
 
@@ -147,7 +147,15 @@ class PlaceExpert(SkillExpert):
         max_speed = torch.where(phase == P.HOVER, torch.full_like(max_speed, 0.1), max_speed)
         released = (phase == P.OPEN) | (phase == P.RETREAT) | (phase == P.HOVER)
         gripper = torch.where(released, torch.ones(self.n, device=self.device), torch.full((self.n,), -1.0, device=self.device))
-        return self.action(target, max_speed, self.heading, gripper, arm_target=self.arm_pose)
+        # Pressing on the surface sinks straight down, which holds no horizontal position: on the arm the support's push
+        # at the grasp point pitches the airframe and it crept back 1.5 cm/s, dragging a master chef can 10 cm across a
+        # drawer's floor off its goal (too fast for the stall release); there the press holds the goal's xy.
+        hold_xy = (POSITION_GAIN * (contact - tcp)[:, :2]).clamp(-HOLD_SPEED_MPS, HOLD_SPEED_MPS)
+        press_velocity = torch.cat([hold_xy, torch.full_like(hold_xy[:, :1], -PRESS_SPEED_MPS)], -1)
+        pressing = on_surface & self.has_arm
+        return self.action(
+            target, max_speed, self.heading, gripper, arm_target=self.arm_pose, velocity_override=(pressing, press_velocity)
+        )
 
 
 __all__ = ["PlaceExpert", "PlacePhase", "wrap_angle"]
