@@ -127,7 +127,7 @@ class ArticulationExpert(SkillExpert):
         candidates = [facing, yaw, toward] + [facing + k * math.pi / 2 for k in (1, -1, 2)]
         planner_at = lambda h: planner_for(self.env, i, heading=h, arm_q=self.reach_pose[i])  # noqa: E731
         return route_at_some_heading(
-            planner_at, start, goal, candidates, lambda h: h == facing or can_turn_in_place(planner_at, goal, h, facing)
+            planner_at, start, [goal], candidates, lambda h: h == facing or can_turn_in_place(planner_at, goal, h, facing)
         )
 
     def _hinge_sign(self) -> torch.Tensor:

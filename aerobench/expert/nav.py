@@ -93,14 +93,10 @@ class NavExpert(SkillExpert):
         toward = math.atan2(goal[1] - start[1], goal[0] - start[0])
         candidates = [heading, toward] + [heading + k * math.pi / 2 for k in (1, -1, 2)] + ROOM_AXES
         planner_at = lambda h: self._planner(i, h)  # noqa: E731
-        for lift in GOAL_LIFTS_M:
-            found, route = route_at_some_heading(
-                planner_at, start, goal + np.array([0.0, 0.0, lift]), candidates,
-                lambda h: h == heading or can_turn_in_place(planner_at, start, heading, h),
-            )
-            if route is not None:
-                return found, route
-        return found, None
+        return route_at_some_heading(
+            planner_at, start, [goal + np.array([0.0, 0.0, lift]) for lift in GOAL_LIFTS_M], candidates,
+            lambda h: h == heading or can_turn_in_place(planner_at, start, heading, h),
+        )
 
     def _planner(self, i: int, heading: float):
         arm_q = None if self.carry_pose is None else self.carry_pose[i]

@@ -23,7 +23,7 @@ from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from .base import SkillExpert
 from .motion import TURN_TOLERANCE_RAD, wrap_angle
-from .planner import planner_for
+from .planner import planner_for, route_at_some_heading
 from .route import RouteFollower
 
 APPROACH_SPEED_MPS = 0.5
@@ -117,13 +117,12 @@ class PickExpert(SkillExpert):
         for i in env_idx.tolist():
             start = (state.position[i] - back[i]).cpu().numpy()
             arm_q = self.pick_arm_pose(self.evaluator)[i] if self.has_arm else None
-            planner = planner_for(self.env, i, heading=float(self.heading[i]), arm_q=arm_q)
-            for distance in STAGING_TRIES_M:
-                goal = (at_pre_grasp[i] - distance * along[i]).cpu().numpy()
-                route = planner.plan(start, goal)
-                if route is not None:
-                    break
-            self.route.set(i, [start] + (route if route is not None else [goal]))
+            heading = float(self.heading[i])
+            stagings = [(at_pre_grasp[i] - distance * along[i]).cpu().numpy() for distance in STAGING_TRIES_M]
+            _, route = route_at_some_heading(
+                lambda h: planner_for(self.env, i, heading=h, arm_q=arm_q), start, stagings, [heading], lambda h: True
+            )
+            self.route.set(i, [start] + (route if route is not None else [stagings[-1]]))
         self.phase[env_idx] = PickPhase.ROUTE
 
     @property

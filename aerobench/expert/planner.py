@@ -270,15 +270,23 @@ def can_turn_in_place(planner_at: Callable[[float], RoutePlanner], at: np.ndarra
 
 
 def route_at_some_heading(
-    planner_at: Callable[[float], RoutePlanner], start: np.ndarray, goal: np.ndarray, candidates: Sequence[float],
+    planner_at: Callable[[float], RoutePlanner], start: np.ndarray, goals: Sequence[np.ndarray], candidates: Sequence[float],
     turn_ok: Callable[[float], bool],
 ) -> tuple[float, list[np.ndarray] | None]:
-    """The first candidate heading with a route from `start` to `goal` flown at that heading and for which
-    `turn_ok(heading)` holds (the turn in place the expert makes to or from it), with its route; else the first
+    """The first candidate heading with a route from `start` to a goal flown at that heading and for which
+    `turn_ok(heading)` holds (the turn in place the expert makes to or from it), with its route (ending at that goal);
+    `goals` are alternatives in order of preference, each tried at every heading before the next. Else the first
     candidate and None. The footprint of a drone that holds its heading is narrower than the any-heading disk, but
     one heading may have no route where another does (an arm reaching towards a counter's edge)."""
-    for h in candidates:
-        route = planner_at(h).plan(start, goal)
-        if route is not None and turn_ok(h):
-            return h, route
+    planners: dict[float, RoutePlanner] = {}
+    turns: dict[float, bool] = {}
+    for goal in goals:
+        for h in candidates:
+            if h not in planners:
+                planners[h] = planner_at(h)
+            route = planners[h].plan(start, goal)
+            if route is not None and h not in turns:
+                turns[h] = turn_ok(h)
+            if route is not None and turns[h]:
+                return h, route
     return candidates[0], None
