@@ -259,8 +259,12 @@ class AerialAgent(BaseAgent):
     # ----------------------------------------------------------------------------------------------------------------
     def airframe_state(self) -> AirframeState:
         """Position and velocity of the airframe centre, rotation and body angular velocity, `(N, ...)`."""
+        q, qd = self.robot.get_qpos(), self.robot.get_qvel()
+        controller = self.body_controller if self.controllers else None
+        if controller is not None and controller.leading_joints:  # the virtual joints lead: one compiled call
+            return controller.step_fn.airframe_state(q, qd)
         idx = self.virtual_joint_indices
-        return airframe_state_from_joints(self.robot.get_qpos()[:, idx], self.robot.get_qvel()[:, idx])
+        return airframe_state_from_joints(q[:, idx], qd[:, idx])
 
     def get_proprioception(self, state: AirframeState | None = None) -> dict:
         """The documented proprioceptive state (`observations.STATE_FIELDS`), `(N, 19)` or `(N, 25)` with the arm;

@@ -42,9 +42,13 @@ class AerialBodyController(BaseController):
         self.arm_target = torch.tensor(working, dtype=torch.float32, device=self.device).expand(n, len(working)).clone()
         self.contact_mode = torch.zeros(n, dtype=torch.bool, device=self.device)
         self._needs_yaw_sync = torch.ones(n, dtype=torch.bool, device=self.device)
-        self.last_result = None  # the fused step's StepResult and the joint state it read (last_output/last_state)
+        # the fused step's StepResult and the joint state it read (last_output/last_state), kept while telemetry
+        # records: otherwise the step returns only the efforts and the controller memory
+        self.last_result = None
         idx = self.active_joint_indices.tolist()
-        # the controller's joints lead the articulation's (fingers follow): plain slices, no gather/scatter per step
+        # the controller's joints lead the articulation's (fingers follow): plain slices, no gather/scatter per step,
+        # and the lean step reads the whole joint vectors and writes every joint's effort
+        self.leading_joints = idx == list(range(len(idx)))
         self._joints = slice(idx[0], idx[-1] + 1) if idx == list(range(idx[0], idx[-1] + 1)) else self.active_joint_indices
         self._qf = None
         self.telemetry: list[dict[str, torch.Tensor]] | None = None  # set to [] to record every physics step
@@ -96,35 +100,41 @@ class AerialBodyController(BaseController):
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
         q_all, qd_all = self.articulation.get_qpos(), self.articulation.get_qvel()
-        q, qd = q_all[:, self._joints], qd_all[:, self._joints]
         m = self.memory
-        tensors = [q, qd, self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w,
+        tensors = [q_all, qd_all, self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w,
                    self._needs_yaw_sync]
         if self.arm is not None:
             tensors += [self.arm_target, self.contact_mode]
-        result = self.step_fn(*tensors)
-        m.xi, m.yaw_des = result.xi, result.yaw_des
-        self._needs_yaw_sync.zero_()
-        if self._qf is None or self._qf.shape != q_all.shape:
-            self._qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
-        self._qf[:, self._joints] = result.efforts
-        self.articulation.set_qf(self._qf)
+        if self.telemetry is None and self.leading_joints:
+            # the lean step: whole joint vectors in, every joint's effort out (the fingers' zero), nothing else
+            efforts, m.xi, m.yaw_des = self.step_fn.efforts(*tensors)
+            self._needs_yaw_sync.zero_()
+            self.articulation.set_qf(efforts)
+        else:
+            q, qd = q_all[:, self._joints], qd_all[:, self._joints]
+            result = self.step_fn(q, qd, *tensors[2:])
+            m.xi, m.yaw_des = result.xi, result.yaw_des
+            self._needs_yaw_sync.zero_()
+            if self._qf is None or self._qf.shape != q_all.shape:
+                self._qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
+            self._qf[:, self._joints] = result.efforts
+            self.articulation.set_qf(self._qf)
+            self.last_result = (result, q, qd)
+            if self.telemetry is not None:
+                out, state = self.last_output, self.last_state
+                self.telemetry.append(
+                    {
+                        "position": state.position.clone(),
+                        "velocity": state.velocity.clone(),
+                        "tilt_cos": state.rotation[:, 2, 2].clone(),
+                        "yaw_rate": (state.rotation[:, 2, :] * state.angular_velocity_body).sum(-1),
+                        "xi": self.memory.xi.clone(),
+                        "rotor_thrusts": out.rotor_thrusts.clone(),
+                        "mass_hat": self.memory.mass_hat.clone(),
+                    }
+                )
         if self.scene.gpu_sim_enabled:
             px.gpu_apply_articulation_qf()
-        self.last_result = (result, q, qd)
-        if self.telemetry is not None:
-            out, state = self.last_output, self.last_state
-            self.telemetry.append(
-                {
-                    "position": state.position.clone(),
-                    "velocity": state.velocity.clone(),
-                    "tilt_cos": state.rotation[:, 2, 2].clone(),
-                    "yaw_rate": (state.rotation[:, 2, :] * state.angular_velocity_body).sum(-1),
-                    "xi": self.memory.xi.clone(),
-                    "rotor_thrusts": out.rotor_thrusts.clone(),
-                    "mass_hat": self.memory.mass_hat.clone(),
-                }
-            )
 
     @property
     def last_output(self) -> FlightOutput | None:

@@ -106,6 +106,33 @@ def physics_step(
                       out.torque_body_cmd, out.velocity_error)
 
 
+def physics_step_efforts(
+    q_all: torch.Tensor,
+    qd_all: torch.Tensor,
+    velocity_cmd: torch.Tensor,
+    yaw_rate_cmd: torch.Tensor,
+    xi: torch.Tensor,
+    yaw_des: torch.Tensor,
+    mass_hat: torch.Tensor,
+    k_R: torch.Tensor,
+    k_w: torch.Tensor,
+    needs_yaw_sync: torch.Tensor,
+    params: FlightParams,
+    arm: ArmParams | None = None,
+    arm_target: torch.Tensor | None = None,
+    contact_mode: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """`physics_step` as the body controller runs it every physics step: the whole articulation's joint positions
+    and velocities `(N, J)` in (the controller's joints lead, the PhysX-driven finger joints follow), the effort of
+    every joint `(N, J)` (zero on the fingers), the new integral and desired heading out. Only what the next step
+    needs leaves the kernel (each output of a compiled call costs about a microsecond); `physics_step` gives the rest."""
+    n = NUM_VIRTUAL_JOINTS + (arm_target.shape[1] if arm is not None else 0)
+    result = physics_step(q_all[:, :n], qd_all[:, :n], velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w,
+                          needs_yaw_sync, params, arm, arm_target, contact_mode)
+    efforts = torch.cat([result.efforts, torch.zeros_like(q_all[:, n:])], dim=-1)
+    return efforts, result.xi, result.yaw_des
+
+
 def cache_dir() -> Path:
     """Where compiled artifacts are kept across processes: `$AEROBENCH_CACHE_DIR`, else `~/.cache/aerobench`."""
     root = os.environ.get("AEROBENCH_CACHE_DIR")
@@ -132,11 +159,12 @@ class _ExportedStep(torch.nn.Module):
         return tuple(self.step(*tensors))
 
 
-def load_aot_step(step: Callable, tensors: list[torch.Tensor], platform: PlatformSpec) -> Callable:
+def load_aot_step(step: Callable, tensors: list[torch.Tensor], platform: PlatformSpec, variant: str = "full") -> Callable:
     """`step` compiled ahead of time for the shapes of `tensors` (CPU), built once per key and loaded from the cache:
-    returns a function of the flat tensor list that returns the flat list of outputs."""
+    returns a function of the flat tensor list that returns the flat list of outputs. `variant` names which function
+    of the step `step` is (its outputs), part of the key."""
     key = hashlib.sha256(repr((
-        _control_source_digest(), repr(platform), [(tuple(t.shape), str(t.dtype)) for t in tensors],
+        _control_source_digest(), variant, repr(platform), [(tuple(t.shape), str(t.dtype)) for t in tensors],
         torch.__version__, torch.backends.cpu.get_cpu_capability(), AOT_INDUCTOR_OPTIONS,
     )).encode()).hexdigest()[:24]
     path = cache_dir() / "physics_step" / f"{key}.pt2"
@@ -162,9 +190,10 @@ def compile_requested() -> bool:
 
 class FusedPhysicsStep:
     """`physics_step` for one platform, its parameters bound: call with the tensors only (the arm platform adds
-    `arm_target` and `contact_mode`). Compiled on first call (ahead of time on a CPU, else `torch.compile`); on any
-    compiler failure the next option, reported once. `backend` says which runs: "compiled ahead of time",
-    "compiled", "eager" (asked for) or "eager (fallback: <reason>)".
+    `arm_target` and `contact_mode`) for the full `StepResult`, or `efforts(...)` with the whole articulation's joints
+    for what the body controller needs every physics step (`physics_step_efforts`). Each is compiled on its first call
+    (ahead of time on a CPU, else `torch.compile`); on any compiler failure the next option, reported once. `backend`
+    says which ran last: "compiled ahead of time", "compiled", "eager" (asked for) or "eager (fallback: <reason>)".
     """
 
     _reported: set[tuple[str, str]] = set()
@@ -174,50 +203,87 @@ class FusedPhysicsStep:
         self.params = FlightParams.from_platform(platform, device)
         self.arm = ArmParams.from_spec(platform.arm, platform.gripper, device) if platform.arm else None
         self.backend = "not run yet" if compile else "eager"
-        self._compiled: Callable | None = None
-        mode = os.environ.get("AEROBENCH_COMPILE_MODE") or None
-        self.cuda_graphs = compile and mode is not None and "reduce-overhead" in mode and str(device).startswith("cuda")
-        self._aot: dict[tuple, Callable] = {}  # per input shapes: one env per process on physx_cpu, so one entry
-        self._aot_ok = compile and str(device) == "cpu" and mode is None
-        if compile:
-            try:
-                self._compiled = torch.compile(self.eager, dynamic=False, fullgraph=True, mode=mode, options=INDUCTOR_OPTIONS)
-            except Exception as exc:  # noqa: BLE001 - e.g. no compiler backend: the eager step is the same function
-                self._fall_back(exc)
+        self._compile = compile
+        self._mode = os.environ.get("AEROBENCH_COMPILE_MODE") or None
+        self.cuda_graphs = compile and self._mode is not None and "reduce-overhead" in self._mode and str(device).startswith("cuda")
+        self._compiled: dict[str, Callable | None] = {}  # per variant: torch.compile's function, None once it failed
+        self._aot: dict[tuple, Callable] = {}  # per variant and input shapes: one env per process on physx_cpu
+        self._aot_ok = compile and str(device) == "cpu" and self._mode is None
+        self._fast: dict[str, tuple[torch.Size, Callable]] = {}  # per variant: the loaded package for the shapes seen
 
     def eager(self, q, qd, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, needs_yaw_sync,
               arm_target=None, contact_mode=None) -> StepResult:
         return physics_step(q, qd, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, needs_yaw_sync,
                             self.params, self.arm, arm_target, contact_mode)
 
+    def eager_efforts(self, q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w, needs_yaw_sync,
+                      arm_target=None, contact_mode=None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        return physics_step_efforts(q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w,
+                                    needs_yaw_sync, self.params, self.arm, arm_target, contact_mode)
+
+    @staticmethod
+    def eager_airframe_state(q_all: torch.Tensor, qd_all: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        state = airframe_state_from_joints(q_all[:, :NUM_VIRTUAL_JOINTS], qd_all[:, :NUM_VIRTUAL_JOINTS])
+        return state.rotation, state.angular_velocity_body
+
     def __call__(self, *tensors: torch.Tensor) -> StepResult:
+        return StepResult(*self._run("full", self.eager, tensors))
+
+    def airframe_state(self, q_all: torch.Tensor, qd_all: torch.Tensor) -> AirframeState:
+        """`airframe_state_from_joints` of the leading six joints of the whole articulation's `(N, J)` joint
+        vectors, as one compiled call (read several times per control step, by the observation and the checks)."""
+        rotation, angular_velocity_body = self._run("airframe_state", self.eager_airframe_state, (q_all, qd_all))
+        return AirframeState(q_all[:, :3], qd_all[:, :3], rotation, angular_velocity_body)
+
+    def efforts(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """`(efforts (N, J), xi, yaw_des)` from the whole articulation's `q_all, qd_all` and the other inputs."""
+        return tuple(self._run("efforts", self.eager_efforts, tensors))
+
+    def _run(self, variant: str, fn: Callable, tensors: tuple[torch.Tensor, ...]):
+        fast = self._fast.get(variant)
+        if fast is not None and tensors[0].shape == fast[0]:  # the shapes follow from q's (N and the joint count)
+            self.backend = "compiled ahead of time"
+            return fast[1]([t if t.is_contiguous() else t.contiguous() for t in tensors])
         if self._aot_ok:
-            shapes = tuple(t.shape for t in tensors)
+            shapes = (variant, *(t.shape for t in tensors))
             run = self._aot.get(shapes)
             if run is None:
                 try:
-                    run = self._aot[shapes] = load_aot_step(self.eager, list(tensors), self.platform)
+                    run = self._aot[shapes] = load_aot_step(fn, list(tensors), self.platform, variant)
                 except Exception as exc:  # noqa: BLE001 - torch.compile (or eager) is the same function
                     self._aot_ok = False
                     self._report("ahead-of-time compilation", exc, "running torch.compile instead")
             if run is not None:
+                self._fast[variant] = (tensors[0].shape, run)
                 self.backend = "compiled ahead of time"
-                return StepResult(*run([t if t.is_contiguous() else t.contiguous() for t in tensors]))
-        if self._compiled is None:
-            return self.eager(*tensors)
+                return run([t if t.is_contiguous() else t.contiguous() for t in tensors])
+        compiled = self._compiled_fn(variant, fn)
+        if compiled is None:
+            return fn(*tensors)
         if self.cuda_graphs:  # a captured graph reuses its output buffers at the next replay: keep copies
             torch.compiler.cudagraph_mark_step_begin()
         try:
-            result = self._compiled(*tensors)
+            result = compiled(*tensors)
         except Exception as exc:  # noqa: BLE001
-            self._fall_back(exc)
-            return self.eager(*tensors)
+            self._fall_back(variant, exc)
+            return fn(*tensors)
         self.backend = "compiled"
-        return StepResult(*(t.clone() for t in result)) if self.cuda_graphs else result
+        return tuple(t.clone() for t in result) if self.cuda_graphs else result
 
-    def _fall_back(self, exc: Exception) -> None:
+    def _compiled_fn(self, variant: str, fn: Callable) -> Callable | None:
+        if not self._compile:
+            return None
+        if variant not in self._compiled:
+            try:
+                self._compiled[variant] = torch.compile(fn, dynamic=False, fullgraph=True, mode=self._mode,
+                                                        options=INDUCTOR_OPTIONS)
+            except Exception as exc:  # noqa: BLE001 - e.g. no compiler backend: the eager step is the same function
+                self._fall_back(variant, exc)
+        return self._compiled[variant]
+
+    def _fall_back(self, variant: str, exc: Exception) -> None:
         reason = self._report("torch.compile", exc, "running the eager step (same numbers, slower on CPU)")
-        self.backend, self._compiled = f"eager (fallback: {reason})", None
+        self.backend, self._compiled[variant] = f"eager (fallback: {reason})", None
 
     @staticmethod
     def _report(what: str, exc: Exception, instead: str) -> str:

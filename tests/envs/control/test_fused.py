@@ -30,7 +30,7 @@ def _inputs(platform: str, n: int = 3, seed: int = 0):
     sync = torch.tensor([True] + [False] * (n - 1))
     arm = ArmParams.from_spec(spec.arm, spec.gripper) if spec.arm else None
     arm_target = torch.randn(n, 3, generator=g) * 0.3 if arm else None
-    contact = torch.tensor([False, True] + [False] * (n - 2)) if arm else None
+    contact = torch.tensor([False, True] + [False] * (n - 2))[:n] if arm else None
     return spec, params, memory, q, qd, v_cmd, yaw_rate, sync, arm, arm_target, contact
 
 
@@ -94,6 +94,30 @@ def test_ahead_of_time_step_matches_the_eager_one(platform, n, aot_cache):
         mp.setattr(torch._inductor, "aoti_compile_and_package", no_build)
         again = FusedPhysicsStep(spec, "cpu", compile=True)
         assert torch.equal(again(*tensors).efforts, compiled.efforts) and again.backend == "compiled ahead of time"
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_the_lean_step_and_the_airframe_state_match_the_full_step(platform, aot_cache):
+    """What the body controller runs every physics step (whole joint vectors in, every joint's effort out, the
+    fingers' zero) and the compiled airframe state are the full step's numbers, compiled ahead of time or eager."""
+    spec, tensors = _tensors(platform, n=1)
+    q, qd = tensors[0], tensors[1]
+    fingers = torch.randn(1, 2)  # the articulation's trailing finger joints, which the controller leaves to PhysX
+    q_all, qd_all = torch.cat([q, fingers], -1), torch.cat([qd, -fingers], -1)
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    full = step.eager(*tensors)
+    for efforts_fn, state_fn in ((step.efforts, step.airframe_state),
+                                 (step.eager_efforts, lambda a, b: step.eager_airframe_state(a, b))):
+        efforts, xi, yaw_des = efforts_fn(q_all, qd_all, *tensors[2:])
+        assert efforts.shape == q_all.shape and torch.equal(efforts[:, q.shape[1]:], torch.zeros(1, 2))
+        torch.testing.assert_close(efforts[:, :q.shape[1]], full.efforts, rtol=1e-5, atol=1e-5)
+        torch.testing.assert_close(xi, full.xi, rtol=1e-5, atol=1e-6)
+        torch.testing.assert_close(yaw_des, full.yaw_des, rtol=1e-5, atol=1e-6)
+        state = state_fn(q_all, qd_all)
+        rotation, omega = (state.rotation, state.angular_velocity_body) if hasattr(state, "rotation") else state
+        torch.testing.assert_close(rotation, full.rotation, rtol=1e-5, atol=1e-6)
+        torch.testing.assert_close(omega, full.angular_velocity_body, rtol=1e-5, atol=1e-6)
+    assert step.backend == "compiled ahead of time", step.backend
 
 
 def test_torch_compiled_step_matches_the_eager_one():
