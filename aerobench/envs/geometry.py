@@ -84,11 +84,25 @@ def level_drone_points(positions: torch.Tensor, yaw: torch.Tensor, points_body: 
     )
 
 
+def boxes_near(points: torch.Tensor, boxes: torch.Tensor, reach_m: float) -> torch.Tensor:
+    """The boxes `(N, B', 8)` of `boxes` that may come within `reach_m` of any of `points` `(N, Q, 3)` in some env;
+    for the others "distance > reach" holds for every point (signed distance is 1-Lipschitz: a box further than
+    reach + r from the points' centroid, r their largest distance from it, is further than reach from each). A
+    column selection with a host synchronization: for start sampling, not the per-step path."""
+    centre = points.mean(dim=1, keepdim=True)  # (N, 1, 3)
+    spread = torch.linalg.norm(points - centre, dim=-1).max(dim=1).values  # (N,)
+    from_centre = point_box_distance(centre, boxes)[:, 0]  # (N, B)
+    return boxes[:, (from_centre <= spread[:, None] + reach_m).any(dim=0)]
+
+
 def is_pose_free(
     positions: torch.Tensor, yaw: torch.Tensor, boxes: torch.Tensor, points_body: torch.Tensor, clearance_m: float
 ) -> torch.Tensor:
     """Which candidate level poses `(N, K)` keep every proxy point `clearance_m` away from every box."""
     n, k = positions.shape[:2]
     pts = level_drone_points(positions, yaw, points_body).reshape(n, -1, 3)
+    boxes = boxes_near(pts, boxes, clearance_m)  # the candidates stand around one anchor: most boxes are far
+    if boxes.shape[1] == 0:
+        return torch.ones(n, k, dtype=torch.bool, device=positions.device)
     dist = point_box_distance(pts, boxes).reshape(n, k, points_body.shape[0], -1)
     return dist.flatten(2).min(dim=-1).values > clearance_m
