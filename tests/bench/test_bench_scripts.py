@@ -167,7 +167,7 @@ def test_bc_inputs_bench_trains_and_scores_each_variant_once(tmp_path):
 
 def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["step_cost.py", "--steps", "3", "--episodes", "1", "--no-cameras",
-                                      "--ppo-windows", "0"])
+                                      "--ppo-windows", "0", "--repeats", "2"])
     step_cost.main()
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.startswith("(")]
@@ -176,6 +176,7 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
         ours, bare, ratio = float(row.split()[-3]), float(row.split()[-2]), float(row.split()[-1].rstrip("x"))
         assert ours > 0 and bare > 0 and ratio == pytest.approx(ours / bare, rel=0.05)
     assert "expert Pick episodes per minute on one core" in out and "(1/1 successful" in out
+    assert float(out.split("AeroPick-v1 reset with a new layout: ")[1].split(" ms")[0]) > 0
 
 
 def test_scale_prints_the_rate_of_one_and_two_ray_workers(tmp_path):
