@@ -95,14 +95,19 @@ def boxes_near(points: torch.Tensor, boxes: torch.Tensor, reach_m: float) -> tor
     return boxes[:, (from_centre <= spread[:, None] + reach_m).any(dim=0)]
 
 
+def points_clear_of_boxes(points: torch.Tensor, boxes: torch.Tensor, clearance_m: float) -> torch.Tensor:
+    """Which points `(N, Q, 3)` are more than `clearance_m` from every box: `(N, Q)`. Only the boxes that can come that
+    near are measured (`boxes_near`: the candidates of a start stand around one anchor, most of a house is far)."""
+    near = boxes_near(points, boxes, clearance_m)
+    if near.shape[1] == 0:
+        return torch.ones(points.shape[:2], dtype=torch.bool, device=points.device)
+    return point_box_distance(points, near).min(dim=-1).values > clearance_m
+
+
 def is_pose_free(
     positions: torch.Tensor, yaw: torch.Tensor, boxes: torch.Tensor, points_body: torch.Tensor, clearance_m: float
 ) -> torch.Tensor:
     """Which candidate level poses `(N, K)` keep every proxy point `clearance_m` away from every box."""
     n, k = positions.shape[:2]
     pts = level_drone_points(positions, yaw, points_body).reshape(n, -1, 3)
-    boxes = boxes_near(pts, boxes, clearance_m)  # the candidates stand around one anchor: most boxes are far
-    if boxes.shape[1] == 0:
-        return torch.ones(n, k, dtype=torch.bool, device=positions.device)
-    dist = point_box_distance(pts, boxes).reshape(n, k, points_body.shape[0], -1)
-    return dist.flatten(2).min(dim=-1).values > clearance_m
+    return points_clear_of_boxes(pts, boxes, clearance_m).reshape(n, k, -1).all(dim=-1)

@@ -13,7 +13,7 @@ import torch
 from mani_skill.utils.structs import Actor, Pose
 
 from ..agents.airframe import FINGER_JOINT_NAMES
-from ..geometry import boxes_near, is_pose_free, point_box_distance
+from ..geometry import is_pose_free, points_clear_of_boxes
 from ..scenes import articulated
 
 SUPPORT_KINDS = ("table", "counter", "shelf", "cabinet", "sofa", "vehicle", "fridge_shelf", "drawer")
@@ -118,9 +118,7 @@ class EpisodeStarts:
             free &= (direction * axis[:, None]).sum(-1) >= min_cos
         if carried_points is not None:
             pts = (tcp[:, :, None, :] + carried_points[:, None]).reshape(m, -1, 3)
-            near = boxes_near(pts, boxes, START_CLEARANCE_M)
-            if near.shape[1] > 0:
-                free &= point_box_distance(pts, near).reshape(m, k, -1).min(-1).values > START_CLEARANCE_M
+            free &= points_clear_of_boxes(pts, boxes, START_CLEARANCE_M).reshape(m, k, -1).all(-1)
         ok = free.any(-1)
         pick = torch.argmax(free.int(), dim=-1)
         rows = torch.arange(m, device=dev)
