@@ -120,7 +120,7 @@ class PickExpert(SkillExpert):
             heading = float(self.heading[i])
             stagings = [(at_pre_grasp[i] - distance * along[i]).cpu().numpy() for distance in STAGING_TRIES_M]
             _, route = route_at_some_heading(
-                lambda h: planner_for(self.env, i, heading=h, arm_q=arm_q), start, stagings, [heading], lambda h: True
+                lambda h, i=i, arm_q=arm_q: planner_for(self.env, i, heading=h, arm_q=arm_q), start, stagings, [heading], lambda h: True
             )
             self.route.set(i, [start] + (route if route is not None else [stagings[-1]]))
         self.phase[env_idx] = PickPhase.ROUTE

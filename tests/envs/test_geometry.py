@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 import torch
 
-from aerobench.envs.geometry import boxes_near, drone_proxy_points_body, is_pose_free, level_drone_points, pack_boxes, point_box_distance
+from aerobench.envs.geometry import (
+    boxes_near,
+    drone_proxy_points_body,
+    is_pose_free,
+    level_drone_points,
+    pack_boxes,
+    point_box_distance,
+)
 from aerobench.envs.platforms import ARM_PLATFORM, GRIPPER_PLATFORM
 from aerobench.envs.scenes import generate_layout
 

@@ -84,7 +84,7 @@ def test_the_transport_after_a_fridge_pick_backs_out_then_flies_with_the_arm_fol
 def test_the_arm_grasps_top_down_from_the_side_with_room_for_its_rotors():
     # drawer chain, eval seed 22, episode 74: a sugar box on a counter against a wall; the grasp heading nearer the
     # drone's yaw after the opening stood the airframe 5 cm into the wall, and the pick flew into it
-    from aerobench.envs.skills.pick import TOP_DOWN_ROOM_M, grasp_heading
+    from aerobench.envs.skills.pick import grasp_heading
 
     env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement", chain="open_pick_nav_place_close")
     try:
