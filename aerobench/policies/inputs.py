@@ -10,6 +10,7 @@ copies instead of deciding when to close (docs/experiments.md).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass
 
 import torch
@@ -61,6 +62,7 @@ class InputSpec:
     def reads_task_state(self) -> bool:
         return bool(self.task_fields)
 
+    @functools.lru_cache(maxsize=8)  # noqa: B019 - a few frozen specs per process; read once per control step
     def _indices(self, with_arm: bool) -> tuple[torch.Tensor, torch.Tensor]:
         state = field_slices(STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()))
         task = field_slices(task_state_fields(with_arm))

@@ -8,9 +8,11 @@ The spec states no other hyper-parameter; the rest are CleanRL's `ppo_continuous
 minibatches (64 samples per window on one CPU env) and no learning-rate annealing (so a run can be resumed with a
 larger budget).
 
-Read top to bottom: config -> env -> networks -> storage -> loop (rollout window, GAE, clipped update, log,
-checkpoint). All envs step together (`num_envs` on physx_cuda; one env per process on physx_cpu). Actions are
-sampled in the actor's normalized action space and sent to the env unnormalized and clamped to [-1, 1].
+Read top to bottom: config -> env(s) -> networks -> loop (rollout window, GAE, clipped update, log, checkpoint).
+The rollout window (`aerobench.train.ppo_rollout.Collector`) steps the envs with the current policy: `num_envs` in
+one batched scene on physx_cuda; on physx_cpu one env here, or with `--num-envs K` one env per rollout worker
+process (`aerobench.train.rollout_workers`), each acting with a copy of the policy and returning its whole window.
+Actions are sampled in the actor's normalized action space and sent to the env unnormalized and clamped to [-1, 1].
 Every finished training episode is appended to `OUT/train_episodes.jsonl`. A checkpoint is written after a window
 (every `save_every` windows and at the end); a resumed run continues from the last one with fresh episodes (the
 ones in flight at the interrupt are dropped, their interactions stay counted) and drops the log lines written
@@ -31,12 +33,10 @@ from torch.distributions import Bernoulli, Normal
 from torch.nn import functional as F
 
 from ..envs.observations import task_state_fields
-from ..policies.inputs import FrameHistory, InputSpec
+from ..policies.inputs import InputSpec
 from ..policies.learned import (
     GRIPPER_MODES,
     Normalizer,
-    camera_inputs,
-    env_action,
     identity_stats,
     load_actor,
     load_weights,
@@ -58,11 +58,11 @@ from .common import (
     torch_threads,
     truncate_jsonl,
 )
-from .vector import ProcessBatchedEnv, RayBatchedEnv, WorkerBatchedEnv
+from .ppo_rollout import RESET_SEED_STRIDE, Collector, Fragment, SkillEnv
+from .ppo_rollout import state_dim as rollout_state_dim
+from .rollout_workers import ProcessWorkers, RayWorkers
 
 EPISODES_FILE = "train_episodes.jsonl"
-RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + episodes started
-MAX_RESET_TRIES = 20  # a start the env cannot place (init_failed) is re-drawn this often before giving up
 SUCCESS_WINDOW = 100  # charts/success_rate: the last 100 finished episodes
 SIM_BACKENDS = ("physx_cpu", "physx_cuda")
 RESUMABLE_CHANGES = ("total_steps", "save_every", "progress", "threads", "ray")
@@ -229,92 +229,6 @@ class RunningMeanStd:
         self.mean, self.var, self.count = state["mean"], state["var"], state["count"]
 
 
-class SkillEnv:
-    """The skill env with episode bookkeeping: seeded resets (re-drawn while a start is infeasible), objects
-    round-robin, and per-env partial resets of finished episodes."""
-
-    def __init__(self, config: PPOConfig, obs_mode: str, episodes_started: int):
-        import gymnasium as gym
-
-        from ..envs.checker import SKILL_ENV_IDS
-
-        self.config = config
-        kwargs = dict(setting=config.setting, obs_mode=obs_mode, num_envs=config.num_envs,
-                      sim_backend=config.sim_backend, controller=config.controller)
-        if config.platform:
-            kwargs["platform"] = config.platform
-        if config.max_episode_steps:
-            kwargs["max_episode_steps"] = config.max_episode_steps
-        if config.objects and len(config.objects) == 1:
-            kwargs["object"] = config.objects[0]
-        env_id = SKILL_ENV_IDS[config.skill]
-        if config.sim_backend == "physx_cpu" and config.num_envs > 1:  # one env per process: K worker processes
-            if obs_mode != "state_dict":
-                raise ValueError("--num-envs > 1 on physx_cpu trains state-only actors; use --num-envs 1 for a "
-                                 "camera BC init, or --sim-backend physx_cuda")
-            kwargs.pop("num_envs")
-            if config.ray is not None:
-                self.env = RayBatchedEnv(env_id, config.num_envs, config.ray, **kwargs)
-            else:
-                self.env = ProcessBatchedEnv(env_id, config.num_envs, **kwargs)
-            self.platform, self.task_state, self.device = self.env.platform, self.env.task_state, self.env.device
-        else:
-            self.env = gym.make(env_id, **kwargs)
-            base = self.env.unwrapped
-            self.platform, self.task_state, self.device = base.platform, base.task_state, base.device
-        self.n = config.num_envs
-        self.started = episodes_started
-
-    @property
-    def processes(self) -> bool:
-        return isinstance(self.env, WorkerBatchedEnv)
-
-    def _objects(self) -> list[str] | None:
-        objects = self.config.objects
-        if not objects or len(objects) == 1:
-            return None
-        return [objects[(self.started + i) % len(objects)] for i in range(self.n)]
-
-    def reset_all(self):
-        for _ in range(MAX_RESET_TRIES):
-            seed = self.config.seed * RESET_SEED_STRIDE + self.started
-            options = {"reconfigure": True}
-            if self._objects():
-                options["objects"] = self._objects()
-            obs, info = self.env.reset(seed=[seed + i for i in range(self.n)] if self.n > 1 else seed, options=options)
-            self.started += self.n
-            if self.n > 1 or not bool(info["init_failed"].any()):
-                break
-        else:
-            raise RuntimeError(f"{MAX_RESET_TRIES} resets of {self.config.skill} in {self.config.setting} found no "
-                               f"feasible start")
-        if self.n > 1 and bool(info["init_failed"].any()):
-            obs, info = self.reset_some(info["init_failed"].nonzero()[:, 0], obs, info)
-        return obs, info
-
-    def reset_some(self, idx: torch.Tensor, obs, info):
-        """Reset the envs `idx` (all of them on one env); returns the batch's observation and info."""
-        if self.n == 1:
-            return self.reset_all()
-        for _ in range(MAX_RESET_TRIES):
-            options = {"env_idx": idx.to(self.device)}
-            seeds = None
-            if self.processes:  # explicit seeds: every episode's start stays traceable (seed * stride + k)
-                base = self.config.seed * RESET_SEED_STRIDE + self.started
-                seeds = [None] * self.n
-                for j, i in enumerate(idx.tolist()):
-                    seeds[i] = base + j
-                if self._objects():
-                    options["objects"] = self._objects()
-            new_obs, new_info = self.env.reset(seed=seeds, options=options)
-            self.started += len(idx)
-            obs, info = new_obs, new_info
-            idx = idx[info["init_failed"][idx].cpu()]
-            if len(idx) == 0:
-                return obs, info
-        raise RuntimeError(f"{MAX_RESET_TRIES} resets found no feasible start for envs {idx.tolist()}")
-
-
 def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
     return {k: v[index] for k, v in storage.items()}
 
@@ -326,7 +240,7 @@ def train_ppo(config: PPOConfig) -> Path:
 
 
 def _train_ppo(config: PPOConfig) -> Path:
-    from .rewards import potential, reward
+    from ..envs.platforms import get_platform
 
     out = Path(config.out)
     current = config_dict(config)
@@ -352,14 +266,24 @@ def _train_ppo(config: PPOConfig) -> Path:
             raise ValueError(f"--init-bc {config.init_bc} holds a {bc_config['algorithm']} checkpoint, not bc")
         model, stats = bc_config["model"], bc_norm.as_dict()
     obs_mode = "rgbd" if config.init_bc and model["cameras"] else "state_dict"
-    env = SkillEnv(config, obs_mode, train_state["episodes_started"] if train_state else 0)
-    action_dim = env.platform.action_dim
-    obs, info = env.reset_all()
-    with_arm = env.platform.arm is not None
+    # ── env(s): in this process (physx_cuda's batch, or one physx_cpu env) or one worker process each ──
+    episodes_started = train_state["episodes_started"] if train_state else 0
+    workers = None
+    if config.sim_backend == "physx_cpu" and config.num_envs > 1:  # one env per process: K rollout workers
+        if obs_mode != "state_dict":
+            raise ValueError("--num-envs > 1 on physx_cpu trains state-only actors; use --num-envs 1 for a camera BC "
+                             "init, or --sim-backend physx_cuda")
+        workers = (RayWorkers(current, obs_mode, config.num_envs, episodes_started, config.ray) if config.ray
+                   else ProcessWorkers(current, obs_mode, config.num_envs, episodes_started))
+        platform = get_platform(workers.platform_name)
+    else:
+        env = SkillEnv(config, obs_mode, config.num_envs, episodes_started=episodes_started)
+        first_obs, first_info = env.reset_all()
+        platform = env.platform
+    action_dim = platform.action_dim
+    with_arm = platform.arm is not None
     inputs = InputSpec.from_dict(model["inputs"]) if bc_actor is not None else config.input_spec(with_arm)
-    history = FrameHistory(inputs.history)
-    task_state = env.task_state().cpu() if inputs.reads_task_state else None
-    state_dim = inputs.frame(obs["agent"]["state"].cpu(), task_state).shape[-1] * inputs.history
+    state_dim = workers.call("state_dim", inputs.as_dict())[0] if workers else rollout_state_dim(env, first_obs, inputs)
     if bc_actor is None:
         model = model_spec(state_dim, action_dim, config.hidden, inputs, gripper=config.gripper)
         stats = identity_stats(state_dim, action_dim)
@@ -386,26 +310,25 @@ def _train_ppo(config: PPOConfig) -> Path:
         if obs_rms is not None:
             obs_rms.load(train_state["obs_rms"])
         torch.set_rng_state(train_state["torch_rng"])
+    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": platform.name}
+    if workers is None:  # the collector acts with the learner's own modules
+        collector = Collector(env, first_obs, first_info, inputs, model, actor, critic, log_std, normalizer)
 
-    cameras, image_size = tuple(model["cameras"]), model["image_size"]
-    meta = {"algorithm": "ppo", "model": model, "train": current, "platform": env.platform.name}
-
-    def inputs_of(obs, keep: bool = True) -> dict[str, torch.Tensor]:
-        """The actor's raw inputs; `keep`: this is the step's observation (it enters the history)."""
-        task_state = env.task_state() if inputs.reads_task_state else None
-        frame = inputs.frame(obs["agent"]["state"].cpu(), None if task_state is None else task_state.cpu())
-        state = history.push(frame) if keep else history.peek(frame)
-        return {"state": state, **{k: v.cpu() for k, v in camera_inputs(obs, cameras, image_size).items()}}
-
-    def normed(x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-        return {**x, "state": normalizer.state(x["state"])}
+    def collect() -> Fragment:
+        """One window of every env with the current policy (a worker acts with a copy, its noise seeded per window)."""
+        if workers is None:
+            return collector.collect(config.num_steps, config.gamma)
+        policy = {"actor": actor.state_dict(), "critic": critic.state_dict(), "log_std": log_std.detach(),
+                  "normalizer": normalizer.state_dict()}
+        return Fragment.join(workers.call("collect", model, policy, config.num_steps, config.gamma,
+                                          config.seed * RESET_SEED_STRIDE + iteration))
 
     bc_starts = read_starts(resolve_checkpoint(config.init_bc, "bc")) if config.init_bc else TrainingStarts()
 
     def starts() -> TrainingStarts:
-        """The env episodes this run started (seeds seed * stride + k), and the BC data it started from."""
-        own = TrainingStarts(ranges=[(config.setting, config.skill, config.seed * RESET_SEED_STRIDE, env.started)],
-                             sources=[f"{config.out} ({env.started} PPO episodes)"])
+        """The env episodes this run started (seeds seed * stride + k, k below the bound), and its BC data's."""
+        own = TrainingStarts(ranges=[(config.setting, config.skill, config.seed * RESET_SEED_STRIDE, episodes_started)],
+                             sources=[f"{config.out} (PPO episodes, start indices below {episodes_started})"])
         own.add(bc_starts)
         return own
 
@@ -413,18 +336,11 @@ def _train_ppo(config: PPOConfig) -> Path:
         weights = {**{f"actor.{k}": v for k, v in actor.state_dict().items()},
                    **{f"critic.{k}": v for k, v in critic.state_dict().items()}, "log_std": log_std.detach()}
         state = {"global_step": global_step, "iteration": iteration, "episodes": episodes_done,
-                 "episodes_started": env.started, "optimizer": optimizer.state_dict(),
+                 "episodes_started": episodes_started, "optimizer": optimizer.state_dict(),
                  "torch_rng": torch.get_rng_state(), "obs_rms": obs_rms.state() if obs_rms else None}
         return save_checkpoint(out, meta, weights, normalizer.as_dict(), state, starts())
 
-    # ── storage, preallocated (num_steps, num_envs, ...) ──
-    T, N = config.num_steps, env.n
-    raw = inputs_of(obs)
-    buf_inputs = {k: torch.zeros((T, *v.shape), dtype=torch.float32) for k, v in raw.items()}
-    buf_raw_state = torch.zeros((T, N, state_dim))
-    actions, logprobs = torch.zeros((T, N, action_dim)), torch.zeros((T, N))
-    rewards, dones, values = torch.zeros((T, N)), torch.zeros((T, N)), torch.zeros((T, N))
-
+    T, N = config.num_steps, config.num_envs
     out.mkdir(parents=True, exist_ok=True)
     episodes_path = out / EPISODES_FILE
     truncate_jsonl(episodes_path, "global_step", global_step)
@@ -436,65 +352,32 @@ def _train_ppo(config: PPOConfig) -> Path:
 
         bar = tqdm(total=config.total_steps, initial=global_step, unit="step", desc=f"ppo {config.skill}", dynamic_ncols=True)
 
-    next_done = torch.zeros(N)
-    prev_phi = potential(config.skill, info).cpu()
-    ep_return, ep_length = torch.zeros(N), torch.zeros(N, dtype=torch.long)
     recent: list[bool] = []
     path = checkpoint
     while global_step < config.total_steps:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
-        for step in range(T):
-            global_step += N
-            x = inputs_of(obs)
-            buf_raw_state[step] = x["state"]
-            x = normed(x)
-            for k, v in x.items():
-                buf_inputs[k][step] = v
-            dones[step] = next_done
-            with torch.no_grad():
-                pred, value = actor(x), critic(x)[:, 0]
-                dist = ActionDistribution(pred, log_std, binary)
-                action = dist.sample()
-            actions[step], logprobs[step], values[step] = action, dist.log_prob(action), value
-            sent = env_action(action, normalizer, model["gripper"], close=action[:, -1] if binary else None)
-            obs, _, terminated, truncated, info = env.env.step(sent.to(env.device))
-            r, phi, _ = reward(config.skill, info, prev_phi.to(env.device), sent.to(env.device))
-            r, phi = r.cpu().float(), phi.cpu()
-            terminated, truncated = terminated.cpu().bool(), truncated.cpu().bool()
-            cut = truncated & ~terminated
-            if cut.any():  # a time limit is not an end of the task: bootstrap from the last state's value
-                with torch.no_grad():
-                    last_value = critic(normed(inputs_of(obs, keep=False)))[:, 0]
-                r = r + config.gamma * last_value * cut
-            rewards[step] = r
-            ep_return += r
-            ep_length += 1
-            done = terminated | truncated
-            next_done = done.float()
-            prev_phi = phi
-            if done.any():
-                success = info["success"].cpu().bool()
-                for i in done.nonzero()[:, 0].tolist():
-                    episodes_done += 1
-                    recent = (recent + [bool(success[i])])[-SUCCESS_WINDOW:]
-                    episode_log.write(json.dumps({"global_step": global_step, "episode": episodes_done,
-                                                  "success": bool(success[i]), "return": float(ep_return[i]),
-                                                  "length": int(ep_length[i])}) + "\n")
-                    log.add("charts/episodic_return", float(ep_return[i]), global_step)
-                    log.add("charts/episodic_length", int(ep_length[i]), global_step)
-                ep_return[done], ep_length[done] = 0.0, 0
-                obs, info = env.reset_some(done.nonzero()[:, 0], obs, info)
-                history.reset(done.nonzero()[:, 0])
-                prev_phi = torch.where(done, potential(config.skill, info).cpu(), prev_phi)
+        # ── rollout window: (T, N) samples ──
+        window = collect()
+        global_step += T * N
+        episodes_started = max(episodes_started, window.starts_bound)
+        buf_inputs, actions, logprobs = window.inputs, window.actions, window.logprobs
+        rewards, dones, values = window.rewards, window.dones, window.values
+        next_value, next_done = window.next_value, window.next_done
+        for episode in window.episodes:
+            episodes_done += 1
+            step = window_start + (episode["step"] + 1) * N
+            recent = (recent + [episode["success"]])[-SUCCESS_WINDOW:]
+            episode_log.write(json.dumps({"global_step": step, "episode": episodes_done, "success": episode["success"],
+                                          "return": episode["return"], "length": episode["length"]}) + "\n")
+            log.add("charts/episodic_return", episode["return"], step)
+            log.add("charts/episodic_length", episode["length"], step)
         if obs_rms is not None:  # from scratch: state statistics follow what the policy sees
-            obs_rms.update(buf_raw_state.reshape(-1, state_dim))
+            obs_rms.update(window.raw_state.reshape(-1, state_dim))
             normalizer.state_mean.copy_(obs_rms.mean)
             normalizer.state_std.copy_(obs_rms.var.sqrt().clamp_min(1e-2))
 
         # ── GAE ──
-        with torch.no_grad():
-            next_value = critic(normed(inputs_of(obs, keep=False)))[:, 0]
         advantages, last = torch.zeros((T, N)), torch.zeros(N)
         for t in reversed(range(T)):
             next_nonterminal = 1.0 - (next_done if t == T - 1 else dones[t + 1])
@@ -577,7 +460,7 @@ def _train_ppo(config: PPOConfig) -> Path:
             path = save()
     episode_log.close()
     log.close()
-    env.env.close()
+    (workers if workers is not None else env).close()
     if bar is not None:
         bar.close()
     return path

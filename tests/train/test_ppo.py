@@ -200,39 +200,51 @@ def test_ppo_steps_envs_in_worker_processes_on_physx_cpu(tmp_path):
 
 
 @pytest.mark.parametrize("workers", ["processes", "ray"])
-def test_worker_envs_match_the_in_process_env(workers):
-    """The same seeds give the same starts and the same steps in worker processes (or Ray actors) as in this one."""
-    import gymnasium as gym
+def test_rollout_workers_collect_the_windows_of_in_process_collectors(tmp_path, workers):
+    """Worker i of 2 (a process, or a Ray actor) collects exactly the window an in-process collector of lane i
+    collects with the same policy and noise seed, episodes reset inside it, from the lane's own starts."""
+    from torch import nn
 
-    from aerobench.train.vector import ProcessBatchedEnv, RayBatchedEnv
+    from aerobench.envs.platforms import get_platform
+    from aerobench.policies.learned import Normalizer, identity_stats, make_actor, make_critic, model_spec
+    from aerobench.train.common import config_dict
+    from aerobench.train.ppo_rollout import Collector, Fragment, SkillEnv
+    from aerobench.train.rollout_workers import ProcessWorkers, RayWorkers
 
-    kwargs = dict(setting="TidyHouse", obs_mode="state_dict", object="master_chef_can")
-    vec = ProcessBatchedEnv("AeroPick-v1", 2, **kwargs) if workers == "processes" else \
-        RayBatchedEnv("AeroPick-v1", 2, "local", **kwargs)
+    config = _config(tmp_path / "run", 64, num_envs=2)
+    pool = ProcessWorkers(config_dict(config), "state_dict", 2, 0) if workers == "processes" else \
+        RayWorkers(config_dict(config), "state_dict", 2, 0, "local")
     try:
-        obs, info = vec.reset(seed=[5, 6])
-        action = torch.tensor([[0.2, -0.1, 0.3, 0.1, 1.0], [0.0, 0.2, -0.1, -0.2, -1.0]])
-        obs1, _, _, _, info1 = vec.step(action)
-        task1 = vec.task_state()
-        obs2, info2 = vec.reset(seed=[None, 9], options={"env_idx": torch.tensor([1])})
-        assert torch.equal(obs2["agent"]["state"][0], obs1["agent"]["state"][0])  # env 0 untouched by the reset
-        assert not torch.equal(obs2["agent"]["state"][1], obs1["agent"]["state"][1])  # env 1 started again
-        assert info2["init_failed"].shape == (2,)
+        platform = get_platform(pool.platform_name)
+        inputs = config.input_spec(platform.arm is not None)
+        dim, action_dim = pool.call("state_dim", inputs.as_dict())[0], platform.action_dim
+        model = model_spec(dim, action_dim, config.hidden, inputs, gripper=config.gripper)
+        torch.manual_seed(3)
+        actor, critic = make_actor(model), make_critic(model)
+        log_std, normalizer = nn.Parameter(torch.full((action_dim - 1,), -0.5)), Normalizer(identity_stats(dim, action_dim))
+        policy = {"actor": actor.state_dict(), "critic": critic.state_dict(), "log_std": log_std.detach(),
+                  "normalizer": normalizer.state_dict()}
+        windows = pool.call("collect", model, policy, 40, config.gamma, 7)
     finally:
-        vec.close()
+        pool.close()
         if workers == "ray":
             import ray
 
             ray.shutdown()
-    for row, seed in enumerate((5, 6)):
-        env = gym.make("AeroPick-v1", **kwargs)
-        ref_obs, _ = env.reset(seed=seed, options={"reconfigure": True})
-        torch.testing.assert_close(obs["agent"]["state"][row], ref_obs["agent"]["state"][0])
-        ref_obs, _, _, _, ref_info = env.step(action[row][None])
-        torch.testing.assert_close(obs1["agent"]["state"][row], ref_obs["agent"]["state"][0])
-        torch.testing.assert_close(task1[row], env.unwrapped.task_state()[0])
-        assert bool(info1["is_grasped"][row]) == bool(ref_info["is_grasped"][0])
+    for lane, window in enumerate(windows):
+        env = SkillEnv(config, "state_dict", 1, lane, 2)
+        with torch_threads(1):
+            collector = Collector(env, *env.reset_all(), inputs, model, actor, critic, log_std, normalizer)
+            torch.manual_seed(7 * 2 + lane)
+            ref = collector.collect(40, config.gamma)
         env.close()
+        for name in ("raw_state", "actions", "logprobs", "rewards", "dones", "values", "next_value", "next_done"):
+            torch.testing.assert_close(getattr(window, name), getattr(ref, name), msg=f"lane {lane}: {name}")
+        assert window.episodes == ref.episodes and len(ref.episodes) >= 1  # 24-step episodes end inside 40 steps
+        assert window.starts_bound == ref.starts_bound == 2 * (1 + len(ref.episodes))  # one start per episode
+    joined = Fragment.join(windows)
+    assert joined.rewards.shape == (40, 2) and joined.next_value.shape == (2,)
+    assert [e["row"] for e in joined.episodes if e["step"] == windows[1].episodes[0]["step"]][-1] == 1
 
 
 def test_ppo_rollout_workers_on_ray(tmp_path):

@@ -1,0 +1,227 @@
+"""PPO's rollout: the skill env with its episode bookkeeping, and the collection of one window with the current policy.
+
+`Collector.collect(T)` steps the `N` envs of one `SkillEnv` for `T` steps with the actor (sampled actions), the
+critic (values, and the bootstrap of a time-limit cut) and the rewards of `aerobench.train.rewards`, resets finished
+episodes, and returns a `Fragment`: the window's `(T, N, ...)` tensors, the critic's value of the last observation
+and the episodes that finished in it. The learner (`aerobench.train.ppo`) runs one collector in its own process
+(physx_cuda's batch, or one physx_cpu env) or one per rollout worker (`aerobench.train.rollout_workers`: K physx_cpu
+envs in K processes, each acting with a copy of the policy, so a window costs one round trip, not one per step).
+
+Episode starts are traceable: the env of lane `i` of `K` (a worker; the learner's own env is lane 0 of 1) starts its
+local episode `e` with seed `seed * RESET_SEED_STRIDE + i + K * e`, so the lanes draw disjoint starts and every
+start of a run lies below `K * max(episodes started per lane)` (`SkillEnv.starts_bound`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+
+from ..policies.inputs import FrameHistory, InputSpec
+from ..policies.learned import Normalizer, camera_inputs, env_action
+
+RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + lane + lanes * (episodes the lane started)
+MAX_RESET_TRIES = 20  # a start the env cannot place (init_failed) is re-drawn this often before giving up
+
+
+class SkillEnv:
+    """The skill env with episode bookkeeping: seeded resets (re-drawn while a start is infeasible), objects
+    round-robin over the starts, and per-env partial resets of finished episodes. `num_envs` rows in this process;
+    `lane`/`lanes` place its starts among those of other processes (see the module docstring)."""
+
+    def __init__(self, config, obs_mode: str, num_envs: int, lane: int = 0, lanes: int = 1, episodes_started: int = 0):
+        import gymnasium as gym
+
+        import aerobench.envs  # noqa: F401 - registers the envs (also in a freshly spawned worker process)
+
+        from ..envs.checker import SKILL_ENV_IDS
+
+        self.config, self.n, self.lane, self.lanes = config, num_envs, lane, lanes
+        kwargs = dict(setting=config.setting, obs_mode=obs_mode, num_envs=num_envs, sim_backend=config.sim_backend,
+                      controller=config.controller)
+        if config.platform:
+            kwargs["platform"] = config.platform
+        if config.max_episode_steps:
+            kwargs["max_episode_steps"] = config.max_episode_steps
+        if config.objects and len(config.objects) == 1:
+            kwargs["object"] = config.objects[0]
+        self.env = gym.make(SKILL_ENV_IDS[config.skill], **kwargs)
+        base = self.env.unwrapped
+        self.platform, self.task_state, self.device = base.platform, base.task_state, base.device
+        self.started = -(-episodes_started // lanes)  # a resumed run's lanes go on above every start it drew
+
+    @property
+    def starts_bound(self) -> int:
+        """Every episode start this env drew has a start index (seed - seed * stride) below this."""
+        return self.lanes * self.started
+
+    def _seeds(self, count: int) -> list[int]:
+        base = self.config.seed * RESET_SEED_STRIDE + self.lane
+        return [base + self.lanes * (self.started + j) for j in range(count)]
+
+    def _objects(self, count: int) -> list[str] | None:
+        objects = self.config.objects
+        if not objects or len(objects) == 1:
+            return None
+        return [objects[(self.lane + self.lanes * (self.started + j)) % len(objects)] for j in range(count)]
+
+    def reset_all(self):
+        for _ in range(MAX_RESET_TRIES):
+            options = {"reconfigure": True}
+            if self._objects(self.n):
+                options["objects"] = self._objects(self.n)
+            seeds = self._seeds(self.n)
+            obs, info = self.env.reset(seed=seeds if self.n > 1 else seeds[0], options=options)
+            self.started += self.n
+            if self.n > 1 or not bool(info["init_failed"].any()):
+                break
+        else:
+            raise RuntimeError(f"{MAX_RESET_TRIES} resets of {self.config.skill} in {self.config.setting} found no "
+                               f"feasible start")
+        if self.n > 1 and bool(info["init_failed"].any()):
+            obs, info = self.reset_some(info["init_failed"].nonzero()[:, 0])
+        return obs, info
+
+    def reset_some(self, idx: torch.Tensor):
+        """Reset the envs `idx` (all of them on one env); returns the batch's observation and info."""
+        if self.n == 1:
+            return self.reset_all()
+        for _ in range(MAX_RESET_TRIES):  # a batched scene draws its rows' starts from its own generator
+            obs, info = self.env.reset(options={"env_idx": idx.to(self.device)})
+            self.started += len(idx)
+            idx = idx[info["init_failed"][idx].cpu()]
+            if len(idx) == 0:
+                return obs, info
+        raise RuntimeError(f"{MAX_RESET_TRIES} resets found no feasible start for envs {idx.tolist()}")
+
+    def close(self) -> None:
+        self.env.close()
+
+
+@dataclass
+class Fragment:
+    """One window of one collector: `(T, N, ...)` tensors, the last observation's value and done flags `(N,)`, and
+    the episodes that finished (`step`: the window step they ended at, `row`: their env)."""
+
+    inputs: dict[str, torch.Tensor]
+    raw_state: torch.Tensor
+    actions: torch.Tensor
+    logprobs: torch.Tensor
+    rewards: torch.Tensor
+    dones: torch.Tensor
+    values: torch.Tensor
+    next_value: torch.Tensor
+    next_done: torch.Tensor
+    episodes: list[dict] = field(default_factory=list)
+    starts_bound: int = 0  # the collector's `SkillEnv.starts_bound` after the window
+
+    @staticmethod
+    def join(fragments: list[Fragment]) -> Fragment:
+        """The fragments of several collectors side by side (their envs in order); episodes ordered by step."""
+        if len(fragments) == 1:
+            return fragments[0]
+        cat = lambda name: torch.cat([getattr(f, name) for f in fragments], dim=-1 if name.startswith("next") else 1)  # noqa: E731
+        episodes, offset = [], 0
+        for f in fragments:
+            episodes += [{**e, "row": e["row"] + offset} for e in f.episodes]
+            offset += f.rewards.shape[1]
+        return Fragment({k: torch.cat([f.inputs[k] for f in fragments], dim=1) for k in fragments[0].inputs},
+                        *(cat(n) for n in ("raw_state", "actions", "logprobs", "rewards", "dones", "values",
+                                           "next_value", "next_done")),
+                        sorted(episodes, key=lambda e: (e["step"], e["row"])),
+                        max(f.starts_bound for f in fragments))
+
+
+def state_dim(env: SkillEnv, obs: dict, inputs: InputSpec) -> int:
+    """The actor's state width for `inputs` on this env (observation `obs`)."""
+    task_state = env.task_state().cpu() if inputs.reads_task_state else None
+    return inputs.frame(obs["agent"]["state"].cpu(), task_state).shape[-1] * inputs.history
+
+
+class Collector:
+    """Collects windows from one `SkillEnv`, starting from its first reset's `obs`/`info`, with the policy it is
+    given (the learner's own modules in its process, a copy loaded with `load_policy` in a worker). Episodes run on
+    across windows."""
+
+    def __init__(self, env: SkillEnv, obs: dict, info: dict, inputs: InputSpec, model: dict, actor, critic,
+                 log_std: torch.Tensor, normalizer: Normalizer):
+        from .ppo import ActionDistribution  # the distribution is the learner's; imported late (ppo imports us)
+        from .rewards import potential
+
+        self.env, self.inputs, self.model = env, inputs, model
+        self.actor, self.critic, self.log_std, self.normalizer = actor, critic, log_std, normalizer
+        self.distribution = ActionDistribution
+        self.binary = model["gripper"] == "binary"
+        self.cameras, self.image_size = tuple(model["cameras"]), model["image_size"]
+        self.history = FrameHistory(inputs.history)
+        self.obs, self.info = obs, info
+        n = env.n
+        self.next_done = torch.zeros(n)
+        self.prev_phi = potential(env.config.skill, self.info).cpu()
+        self.ep_return, self.ep_length = torch.zeros(n), torch.zeros(n, dtype=torch.long)
+
+    def load_policy(self, policy: dict) -> None:
+        """A worker's copy of the learner's policy: `{"actor", "critic", "log_std", "normalizer"}`."""
+        self.actor.load_state_dict(policy["actor"])
+        self.critic.load_state_dict(policy["critic"])
+        with torch.no_grad():
+            self.log_std.copy_(policy["log_std"])
+        self.normalizer.load_state_dict(policy["normalizer"])
+
+    def raw_inputs(self, keep: bool = True) -> dict[str, torch.Tensor]:
+        """The actor's raw inputs for the current observation; `keep`: it enters the frame history."""
+        task_state = self.env.task_state().cpu() if self.inputs.reads_task_state else None
+        frame = self.inputs.frame(self.obs["agent"]["state"].cpu(), task_state)
+        state = self.history.push(frame) if keep else self.history.peek(frame)
+        return {"state": state,
+                **{k: v.cpu() for k, v in camera_inputs(self.obs, self.cameras, self.image_size).items()}}
+
+    def _normed(self, x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        return {**x, "state": self.normalizer.state(x["state"])}
+
+    def _bootstrap_value(self) -> torch.Tensor:
+        with torch.no_grad():
+            return self.critic(self._normed(self.raw_inputs(keep=False)))[:, 0]
+
+    def collect(self, steps: int, gamma: float) -> Fragment:
+        from .rewards import potential, reward
+
+        skill, env, device = self.env.config.skill, self.env, self.env.device
+        rows = []
+        episodes = []
+        for t in range(steps):
+            raw = self.raw_inputs()
+            x = self._normed(raw)
+            with torch.no_grad():
+                pred, value = self.actor(x), self.critic(x)[:, 0]
+                dist = self.distribution(pred, self.log_std, self.binary)
+                action = dist.sample()
+            sent = env_action(action, self.normalizer, self.model["gripper"],
+                              close=action[:, -1] if self.binary else None)
+            self.obs, _, terminated, truncated, self.info = env.env.step(sent.to(device))
+            r, phi, _ = reward(skill, self.info, self.prev_phi.to(device), sent.to(device))
+            r, phi = r.cpu().float(), phi.cpu()
+            terminated, truncated = terminated.cpu().bool(), truncated.cpu().bool()
+            cut = truncated & ~terminated
+            if cut.any():  # a time limit is not an end of the task: bootstrap from the last state's value
+                r = r + gamma * self._bootstrap_value() * cut
+            rows.append((x, raw["state"], action, dist.log_prob(action), r, self.next_done, value))
+            self.ep_return += r
+            self.ep_length += 1
+            done = terminated | truncated
+            self.next_done = done.float()
+            self.prev_phi = phi
+            if done.any():
+                success = self.info["success"].cpu().bool()
+                idx = done.nonzero()[:, 0]
+                episodes += [{"step": t, "row": i, "success": bool(success[i]), "return": float(self.ep_return[i]),
+                              "length": int(self.ep_length[i])} for i in idx.tolist()]
+                self.ep_return[done], self.ep_length[done] = 0.0, 0
+                self.obs, self.info = env.reset_some(idx)
+                self.history.reset(idx)
+                self.prev_phi = torch.where(done, potential(skill, self.info).cpu(), self.prev_phi)
+        inputs = {k: torch.stack([row[0][k] for row in rows]) for k in rows[0][0]}
+        stacked = [torch.stack([row[j] for row in rows]) for j in range(1, 7)]
+        return Fragment(inputs, *stacked, next_value=self._bootstrap_value(), next_done=self.next_done.clone(),
+                        episodes=episodes, starts_bound=env.starts_bound)
