@@ -203,7 +203,8 @@ def train_bc_checkpoint(dataset: Path, out: Path, steps: int, seed: int,
 
 
 def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
-    """PPO from scratch on the setting's Pick (reused when `out` holds a finished run)."""
+    """PPO from scratch on the setting's skill, one env per `--workers` (rollout worker processes; reused when `out`
+    holds a finished run, resumed when it holds an interrupted one)."""
     if (ckpt := _done(out)) is not None:
         return ckpt, json.loads((out / DONE_FILE).read_text())["train_s"]
     from aerobench.train.ppo import PPOConfig, train_ppo
@@ -211,7 +212,8 @@ def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
     started = time.monotonic()  # an interrupted run resumes from its last checkpoint (the time is this run's)
     ckpt = Path(train_ppo(PPOConfig(setting=budget.setting, skill=budget.skill, objects=budget.objects, out=str(out),
                                     total_steps=budget.ppo_steps, seed=budget.seed, init_bc=None,
-                                    max_episode_steps=budget.max_steps, progress=False)))
+                                    num_envs=max(1, budget.workers), max_episode_steps=budget.max_steps,
+                                    progress=False)))
     elapsed = time.monotonic() - started
     _mark_done(out, ckpt, elapsed)
     return ckpt, elapsed
@@ -420,7 +422,7 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
     parser.add_argument("--skill", default="pick", help="pick (the spec's figure) or place")
     parser.add_argument("--seed", type=int, default=0, help="PPO's training seed")
     parser.add_argument("--bc-seeds", type=_ints, default=(0,), help="BC training seeds (default 0)")
-    parser.add_argument("--workers", type=int, default=1, help="collection and evaluation processes (e.g. the cores)")
+    parser.add_argument("--workers", type=int, default=1, help="collection and evaluation processes and PPO rollout workers (e.g. the cores)")
     parser.add_argument("--max-steps", type=int, default=None, help="truncate held-out and PPO training episodes (smoke tests)")
     parser.add_argument("--transition-budget", type=int, default=None,
                         help="also train BC on the leading demos of all rounds (collection order) within this many "
