@@ -29,7 +29,6 @@ from pathlib import Path
 
 import torch
 from torch import nn
-from torch.distributions import Bernoulli, Normal
 from torch.nn import functional as F
 
 from ..envs.observations import task_state_fields
@@ -58,7 +57,7 @@ from .common import (
     torch_threads,
     truncate_jsonl,
 )
-from .ppo_rollout import RESET_SEED_STRIDE, Collector, Fragment, SkillEnv
+from .ppo_rollout import RESET_SEED_STRIDE, ActionDistribution, Collector, Fragment, SkillEnv
 from .ppo_rollout import state_dim as rollout_state_dim
 from .rollout_workers import ProcessWorkers, RayWorkers
 
@@ -174,32 +173,6 @@ class PPOConfig:
         return InputSpec(state_fields=self.state_fields, task_fields=task)
 
 
-class ActionDistribution:
-    """The policy's action distribution on the actor's output `(N, A)`: a Gaussian (std `exp(log_std)`) over the
-    normalized continuous dimensions and, with a binary gripper, a Bernoulli over "close" (the last output is its
-    logit). Samples are `(N, A)`: the continuous values, then the close bit."""
-
-    def __init__(self, out: torch.Tensor, log_std: torch.Tensor, binary: bool):
-        self.binary = binary
-        self.normal = Normal(out[:, :-1] if binary else out, log_std.exp())
-        self.close = Bernoulli(logits=out[:, -1]) if binary else None
-
-    def sample(self) -> torch.Tensor:
-        parts = [self.normal.sample()]
-        if self.binary:
-            parts.append(self.close.sample()[:, None])
-        return torch.cat(parts, dim=-1)
-
-    def log_prob(self, action: torch.Tensor) -> torch.Tensor:
-        if not self.binary:
-            return self.normal.log_prob(action).sum(-1)
-        return self.normal.log_prob(action[:, :-1]).sum(-1) + self.close.log_prob(action[:, -1])
-
-    def entropy(self) -> torch.Tensor:
-        entropy = self.normal.entropy().sum(-1)
-        return entropy + self.close.entropy() if self.binary else entropy
-
-
 def imitation_loss(out: torch.Tensor, teacher: torch.Tensor, binary: bool) -> torch.Tensor:
     """Distance of the actor's output to the frozen BC actor's: MSE of the continuous means, and (binary gripper)
     the cross-entropy to the teacher's close probability."""
@@ -273,8 +246,8 @@ def _train_ppo(config: PPOConfig) -> Path:
         if obs_mode != "state_dict":
             raise ValueError("--num-envs > 1 on physx_cpu trains state-only actors; use --num-envs 1 for a camera BC "
                              "init, or --sim-backend physx_cuda")
-        workers = (RayWorkers(current, obs_mode, config.num_envs, episodes_started, config.ray) if config.ray
-                   else ProcessWorkers(current, obs_mode, config.num_envs, episodes_started))
+        workers = (RayWorkers(config, obs_mode, config.num_envs, episodes_started, config.ray) if config.ray
+                   else ProcessWorkers(config, obs_mode, config.num_envs, episodes_started))
         platform = get_platform(workers.platform_name)
     else:
         env = SkillEnv(config, obs_mode, config.num_envs, episodes_started=episodes_started)

@@ -17,12 +17,39 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import torch
+from torch.distributions import Bernoulli, Normal
 
 from ..policies.inputs import FrameHistory, InputSpec
 from ..policies.learned import Normalizer, camera_inputs, env_action
 
 RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + lane + lanes * (episodes the lane started)
 MAX_RESET_TRIES = 20  # a start the env cannot place (init_failed) is re-drawn this often before giving up
+
+
+class ActionDistribution:
+    """The policy's action distribution on the actor's output `(N, A)`: a Gaussian (std `exp(log_std)`) over the
+    normalized continuous dimensions and, with a binary gripper, a Bernoulli over "close" (the last output is its
+    logit). Samples are `(N, A)`: the continuous values, then the close bit."""
+
+    def __init__(self, out: torch.Tensor, log_std: torch.Tensor, binary: bool):
+        self.binary = binary
+        self.normal = Normal(out[:, :-1] if binary else out, log_std.exp())
+        self.close = Bernoulli(logits=out[:, -1]) if binary else None
+
+    def sample(self) -> torch.Tensor:
+        parts = [self.normal.sample()]
+        if self.binary:
+            parts.append(self.close.sample()[:, None])
+        return torch.cat(parts, dim=-1)
+
+    def log_prob(self, action: torch.Tensor) -> torch.Tensor:
+        if not self.binary:
+            return self.normal.log_prob(action).sum(-1)
+        return self.normal.log_prob(action[:, :-1]).sum(-1) + self.close.log_prob(action[:, -1])
+
+    def entropy(self) -> torch.Tensor:
+        entropy = self.normal.entropy().sum(-1)
+        return entropy + self.close.entropy() if self.binary else entropy
 
 
 class SkillEnv:
@@ -146,12 +173,10 @@ class Collector:
 
     def __init__(self, env: SkillEnv, obs: dict, info: dict, inputs: InputSpec, model: dict, actor, critic,
                  log_std: torch.Tensor, normalizer: Normalizer):
-        from .ppo import ActionDistribution  # the distribution is the learner's; imported late (ppo imports us)
         from .rewards import potential
 
         self.env, self.inputs, self.model = env, inputs, model
         self.actor, self.critic, self.log_std, self.normalizer = actor, critic, log_std, normalizer
-        self.distribution = ActionDistribution
         self.binary = model["gripper"] == "binary"
         self.cameras, self.image_size = tuple(model["cameras"]), model["image_size"]
         self.history = FrameHistory(inputs.history)
@@ -195,7 +220,7 @@ class Collector:
             x = self._normed(raw)
             with torch.no_grad():
                 pred, value = self.actor(x), self.critic(x)[:, 0]
-                dist = self.distribution(pred, self.log_std, self.binary)
+                dist = ActionDistribution(pred, self.log_std, self.binary)
                 action = dist.sample()
             sent = env_action(action, self.normalizer, self.model["gripper"],
                               close=action[:, -1] if self.binary else None)

@@ -52,22 +52,20 @@ def _convert(value: Any, fn, kind=torch.Tensor) -> Any:
 
 class RolloutWorker(gym.Env):
     """One worker: its `SkillEnv` (lane `lane` of `lanes`) and, from the first `collect`, a `Collector` with a copy
-    of the policy. `config` is the run's `PPOConfig` as a dict."""
+    of the policy. `config` is the run's `PPOConfig`."""
 
     observation_space = action_space = gym.spaces.Box(0.0, 1.0, (1,), np.float32)  # placeholders (never stepped)
 
-    def __init__(self, config: dict, obs_mode: str, lane: int, lanes: int, episodes_started: int):
+    def __init__(self, config, obs_mode: str, lane: int, lanes: int, episodes_started: int):
         self.args = (config, obs_mode, lane, lanes, episodes_started)
         self.env: SkillEnv | None = None
         self.collector: Collector | None = None
 
     def start(self) -> str:
         """Build the env and draw its first start (one torch thread: one core per worker); returns its platform."""
-        from .ppo import PPOConfig
-
         torch.set_num_threads(1)
         config, obs_mode, lane, lanes, started = self.args
-        self.env = SkillEnv(PPOConfig(**config), obs_mode, 1, lane, lanes, started)
+        self.env = SkillEnv(config, obs_mode, 1, lane, lanes, started)
         self.first = self.env.reset_all()
         return self.env.platform.name
 
@@ -101,7 +99,7 @@ class RolloutWorker(gym.Env):
 class ProcessWorkers:
     """K `RolloutWorker`s in K spawned processes (gymnasium's `AsyncVectorEnv`)."""
 
-    def __init__(self, config: dict, obs_mode: str, num_workers: int, episodes_started: int):
+    def __init__(self, config, obs_mode: str, num_workers: int, episodes_started: int):
         from gymnasium.vector import AsyncVectorEnv
 
         self.vec = AsyncVectorEnv(
@@ -120,7 +118,7 @@ class RayWorkers:
     """K `RolloutWorker`s as Ray actors (one CPU each) of a local runtime (`address` "local") or a cluster. An actor
     that dies ends the run with Ray's error (a resume continues from the last checkpoint)."""
 
-    def __init__(self, config: dict, obs_mode: str, num_workers: int, episodes_started: int, address: str):
+    def __init__(self, config, obs_mode: str, num_workers: int, episodes_started: int, address: str):
         import ray
 
         from ..rollout.ray_shards import connect

@@ -207,13 +207,12 @@ def test_rollout_workers_collect_the_windows_of_in_process_collectors(tmp_path, 
 
     from aerobench.envs.platforms import get_platform
     from aerobench.policies.learned import Normalizer, identity_stats, make_actor, make_critic, model_spec
-    from aerobench.train.common import config_dict
     from aerobench.train.ppo_rollout import Collector, Fragment, SkillEnv
     from aerobench.train.rollout_workers import ProcessWorkers, RayWorkers
 
     config = _config(tmp_path / "run", 64, num_envs=2)
-    pool = ProcessWorkers(config_dict(config), "state_dict", 2, 0) if workers == "processes" else \
-        RayWorkers(config_dict(config), "state_dict", 2, 0, "local")
+    pool = ProcessWorkers(config, "state_dict", 2, 0) if workers == "processes" else \
+        RayWorkers(config, "state_dict", 2, 0, "local")
     try:
         platform = get_platform(pool.platform_name)
         inputs = config.input_spec(platform.arm is not None)
