@@ -96,8 +96,8 @@ class SkillEnv:
     def reset_all(self):
         for _ in range(MAX_RESET_TRIES):
             options = {"reconfigure": True}
-            if self._objects(self.n):
-                options["objects"] = self._objects(self.n)
+            if objects := self._objects(self.n):
+                options["objects"] = objects
             seeds = self._seeds(self.n)
             obs, info = self.env.reset(seed=seeds if self.n > 1 else seeds[0], options=options)
             self.started += self.n
@@ -160,10 +160,15 @@ class Fragment:
                         max(f.starts_bound for f in fragments))
 
 
+def input_frame(env: SkillEnv, obs: dict, inputs: InputSpec) -> torch.Tensor:
+    """One frame `(N, F)` of the actor's state inputs from the env's observation `obs` (and its task state)."""
+    task_state = env.task_state().cpu() if inputs.reads_task_state else None
+    return inputs.frame(obs["agent"]["state"].cpu(), task_state)
+
+
 def state_dim(env: SkillEnv, obs: dict, inputs: InputSpec) -> int:
     """The actor's state width for `inputs` on this env (observation `obs`)."""
-    task_state = env.task_state().cpu() if inputs.reads_task_state else None
-    return inputs.frame(obs["agent"]["state"].cpu(), task_state).shape[-1] * inputs.history
+    return input_frame(env, obs, inputs).shape[-1] * inputs.history
 
 
 class Collector:
@@ -196,8 +201,7 @@ class Collector:
 
     def raw_inputs(self, keep: bool = True) -> dict[str, torch.Tensor]:
         """The actor's raw inputs for the current observation; `keep`: it enters the frame history."""
-        task_state = self.env.task_state().cpu() if self.inputs.reads_task_state else None
-        frame = self.inputs.frame(self.obs["agent"]["state"].cpu(), task_state)
+        frame = input_frame(self.env, self.obs, self.inputs)
         state = self.history.push(frame) if keep else self.history.peek(frame)
         return {"state": state,
                 **{k: v.cpu() for k, v in camera_inputs(self.obs, self.cameras, self.image_size).items()}}
@@ -231,7 +235,8 @@ class Collector:
             cut = truncated & ~terminated
             if cut.any():  # a time limit is not an end of the task: bootstrap from the last state's value
                 r = r + gamma * self._bootstrap_value() * cut
-            rows.append((x, raw["state"], action, dist.log_prob(action), r, self.next_done, value))
+            rows.append({"inputs": x, "raw_state": raw["state"], "actions": action, "logprobs": dist.log_prob(action),
+                         "rewards": r, "dones": self.next_done, "values": value})
             self.ep_return += r
             self.ep_length += 1
             done = terminated | truncated
@@ -246,7 +251,7 @@ class Collector:
                 self.obs, self.info = env.reset_some(idx)
                 self.history.reset(idx)
                 self.prev_phi = torch.where(done, potential(skill, self.info).cpu(), self.prev_phi)
-        inputs = {k: torch.stack([row[0][k] for row in rows]) for k in rows[0][0]}
-        stacked = [torch.stack([row[j] for row in rows]) for j in range(1, 7)]
-        return Fragment(inputs, *stacked, next_value=self._bootstrap_value(), next_done=self.next_done.clone(),
+        stacked = {name: torch.stack([row[name] for row in rows]) for name in rows[0] if name != "inputs"}
+        inputs = {k: torch.stack([row["inputs"][k] for row in rows]) for k in rows[0]["inputs"]}
+        return Fragment(inputs, **stacked, next_value=self._bootstrap_value(), next_done=self.next_done.clone(),
                         episodes=episodes, starts_bound=env.starts_bound)
