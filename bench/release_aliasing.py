@@ -63,16 +63,12 @@ def measure(root: Path, tolerance: float) -> dict:
 
 def small_dataset(root: Path, episodes: int) -> Path:
     """Expert Place episodes (tomato soup can, sugar box), state only, all kept; reused when already generated."""
-    if (root / EPISODES_FILE).is_file():
-        return root
-    from aerobench.export import DatasetSink
-    from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+    if not (root / EPISODES_FILE).is_file():
+        from aerobench.export.generation import generate
+        from aerobench.rollout.runner import RolloutSpec
 
-    spec = RolloutSpec(setting="PrepareGroceries", skills=("place",), episodes=episodes,
-                       objects=("tomato_soup_can", "sugar_box"), policy="expert", record_cameras=False, seed=4250)
-    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"})
-    RolloutRunner(spec, sink).run()
-    sink.close()
+        generate(RolloutSpec(setting="PrepareGroceries", skills=("place",), episodes=episodes, seed=4250,
+                             objects=("tomato_soup_can", "sugar_box"), record_cameras=False), root, keep="all")
     return root
 
 

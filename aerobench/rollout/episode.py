@@ -70,3 +70,23 @@ class EpisodeSink(Protocol):
 
     def close(self) -> None:
         """Flush and finish (e.g. merge the parts of a dataset)."""
+
+
+class EpisodeList:
+    """An `EpisodeSink` that keeps the episodes in memory (`episodes`), for diagnostics that look at a few episodes
+    step by step; nothing is written, so nothing resumes."""
+
+    def __init__(self):
+        self.episodes: list[EpisodeData] = []
+
+    def done_indices(self) -> set[int]:
+        return set()
+
+    def write(self, episode: EpisodeData) -> None:
+        self.episodes.append(episode)
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass

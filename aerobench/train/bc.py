@@ -75,6 +75,8 @@ class BCConfig:
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
     hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes"})
     outcomes: tuple[str, ...] = field(default=("S",), metadata={"help": "episode outcomes to train on (spec: S)"})
+    objects: tuple[str, ...] | None = field(default=None, metadata={"help": "train on the episodes of these object "
+                                            "classes only (default: every class; e.g. a class left out)"})
     max_transitions: int | None = field(default=None, metadata={"help": "a data budget: train on the leading selected "
                                         "episodes, in dataset order, whose frames total at most this (default: all)"})
     image_size: int = field(default=64, metadata={"help": "camera images are reduced to this many pixels a side"})
@@ -90,6 +92,9 @@ class BCConfig:
         self.hidden, self.outcomes = tuple(self.hidden), tuple(self.outcomes)
         self.state_fields = tuple(self.state_fields)
         self.task_fields = None if self.task_fields is None else tuple(self.task_fields)
+        self.objects = None if self.objects is None else tuple(self.objects)
+        if self.objects is not None and not self.objects:
+            raise ValueError("--objects needs at least one object class (leave it out to train on every class)")
         if self.gripper not in GRIPPER_MODES:
             raise ValueError(f"--gripper must be one of {', '.join(GRIPPER_MODES)}, got {self.gripper!r}")
         if self.gripper_weight < 0 or self.onset_weight < 1:
@@ -117,15 +122,22 @@ class BCConfig:
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
 
 
-def select_episodes(root: Path, outcomes: tuple[str, ...]) -> list[int]:
-    """Dataset episode indices whose annotated outcome is one of `outcomes`."""
+def select_episodes(root: Path, outcomes: tuple[str, ...], objects: tuple[str, ...] | None = None) -> list[int]:
+    """Dataset episode indices whose annotated outcome is one of `outcomes` (and object one of `objects`)."""
     from ..export import read_jsonl
 
     path = root / EPISODES_FILE
     if not path.is_file():
         raise ValueError(f"{root} has no {EPISODES_FILE}: BC reads an aerobench export (aerobench generate --out DIR, "
                          f"merged) whose annotations name each episode's outcome")
-    return [int(r["dataset_episode_index"]) for r in read_jsonl(path) if r["outcome"] in outcomes]
+    rows = read_jsonl(path)
+    if objects is not None:
+        unknown = sorted(set(objects) - {r["object"] for r in rows})
+        if unknown:
+            raise ValueError(f"{root} has no episode of {', '.join(unknown)}; its objects: "
+                             f"{', '.join(sorted({r['object'] for r in rows}))}")
+    return [int(r["dataset_episode_index"]) for r in rows
+            if r["outcome"] in outcomes and (objects is None or r["object"] in objects)]
 
 
 def within_budget(episodes: list[int], frame_episode: torch.Tensor, max_transitions: int) -> list[int]:
@@ -149,7 +161,7 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
     root = Path(config.dataset)
     if not (root / "meta" / "info.json").is_file():
         raise ValueError(f"no LeRobot dataset at {root} (meta/info.json missing); export one with aerobench generate")
-    episodes = select_episodes(root, config.outcomes)
+    episodes = select_episodes(root, config.outcomes, config.objects)
     if not episodes:
         raise ValueError(f"{root} has no episode with outcome {'/'.join(config.outcomes)} to train on")
     ds = LeRobotDataset(config.repo_id, root=root, video_backend=VIDEO_BACKEND)
@@ -189,6 +201,8 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         data.update({cam: torch.cat(frames[cam]) for cam in CAMERAS})
     facts = {"episodes": len(episodes), "frames": len(chosen), "robot_type": ds.meta.robot_type,
              "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames, "inputs": inputs.as_dict()}
+    if config.objects is not None:
+        facts["objects"] = list(config.objects)
     return data, facts
 
 

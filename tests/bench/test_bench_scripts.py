@@ -17,6 +17,7 @@ BENCH = Path(__file__).resolve().parents[2] / "bench"
 sys.path.insert(0, str(BENCH))
 
 import bc_inputs  # noqa: E402
+import descent_onset  # noqa: E402
 import diversity  # noqa: E402
 import learning_curves  # noqa: E402
 import release_aliasing  # noqa: E402
@@ -229,3 +230,53 @@ def test_release_aliasing_counts_the_still_closed_frames_before_a_release(tmp_pa
     assert field_slices(TASK_STATE_FIELDS)["skill"].stop == release_aliasing.AFTER_SKILL
     with pytest.raises(SystemExit):
         release_aliasing.main([str(tmp_path / "missing")])
+
+
+def _pick_frame(height: float, xy: float, speed: float, vz: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    from aerobench.envs.observations import TASK_STATE_FIELDS, field_slices
+
+    sl = field_slices(TASK_STATE_FIELDS)
+    state = np.zeros(sum(n for _, n in TASK_STATE_FIELDS), np.float32)
+    state[sl["goal_pos"]] = [xy, 0.0, -height]
+    state[sl["linear_velocity"]] = [0.0, 0.0, -speed]
+    return state, np.array([0, 0, vz, 0, 1], np.float32)
+
+
+def test_descent_onset_finds_the_switch_the_still_frames_and_a_parked_episode(tmp_path):
+    import pandas as pd
+
+    from aerobench.expert.pick import PickPhase as P
+
+    # episode 0 (box): approach, two still frames above it, the switch at 0.20 m / 0.03 m/s / 4 mm, a descent
+    # episode 1 (can): waits still at 0.18 m (three frames, vz 0), then switches while still
+    episodes = {0: [(0.5, 0.3, 0.4, P.APPROACH), (0.21, 0.004, 0.005, P.ALIGN), (0.21, 0.004, 0.002, P.ALIGN),
+                    (0.20, 0.004, 0.03, P.DESCEND), (0.10, 0.002, 0.15, P.DESCEND)],
+                1: [(0.18, 0.003, 0.001, P.ALIGN)] * 3 + [(0.18, 0.001, 0.001, P.DESCEND)]}
+    rows = []
+    for e, frames in episodes.items():
+        for height, xy, speed, phase in frames:
+            state, action = _pick_frame(height, xy, speed)
+            rows.append({"episode_index": e, "observation.environment_state": state, "action": action,
+                         "annotation.phase": int(phase)})
+    (tmp_path / "data" / "chunk-000").mkdir(parents=True)
+    pd.DataFrame(rows).to_parquet(tmp_path / "data" / "chunk-000" / "file-000.parquet")
+    (tmp_path / "meta").mkdir()
+    (tmp_path / "meta" / "aerobench_episodes.jsonl").write_text(
+        "".join(json.dumps({"dataset_episode_index": e, "object": o}) + "\n" for e, o in ((0, "box"), (1, "can"))))
+    frames, objects = descent_onset.read_frames(tmp_path)
+    table = descent_onset.expert_switches(frames, objects, still=0.01)
+    assert table["box"] == {"switches": 1, "height_m": 0.2, "speed_mps": 0.03, "xy_m": 0.004, "frames_above": 2,
+                            "still_frames_above": 2}
+    assert table["can"]["switches"] == 1 and table["can"]["still_frames_above"] == 3
+    # a policy episode that ends still 0.18 m above the grasp point is parked; the can's waiting frames lie near it
+    still_end = np.stack([_pick_frame(0.18, 0.001, 0.0)[0]] * 10)
+    stop = descent_onset.parked(still_end, window=5, still=0.01)
+    assert stop == {"height_m": 0.18, "xy_m": 0.001}
+    near = descent_onset.expert_labels_near(frames, objects, stop, "box", still=0.01)
+    assert near["same_class"] == {"frames": 0, "mean_vz_command": None}
+    assert near["other_classes"]["frames"] == 4
+    # moving at the end, or down at the grasp point: not parked
+    assert descent_onset.parked(np.stack([_pick_frame(0.18, 0.001, 0.05)[0]] * 10), window=5, still=0.01) is None
+    assert descent_onset.parked(np.stack([_pick_frame(0.01, 0.001, 0.0)[0]] * 10), window=5, still=0.01) is None
+    with pytest.raises(SystemExit):
+        descent_onset.main([str(tmp_path / "missing")])

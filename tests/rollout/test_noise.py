@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from aerobench.rollout.episode import EpisodeList
 from aerobench.rollout.noise import FLIGHT_ACTION_DIMS, ActionNoise, check_action_noise
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
 
@@ -48,27 +49,10 @@ class _Executed(gym.Wrapper):
         return super().step(action)
 
 
-class _ListSink:
-    def __init__(self):
-        self.episodes = []
-
-    def done_indices(self):
-        return set()
-
-    def write(self, episode):
-        self.episodes.append(episode)
-
-    def flush(self):
-        pass
-
-    def close(self):
-        pass
-
-
 def test_the_episode_records_the_experts_action_while_the_env_executes_the_perturbed_one(monkeypatch):
     spec = RolloutSpec(setting="TidyHouse", skills=("nav",), episodes=1, seed=3, record_cameras=False, max_steps=12,
                        action_noise=0.2)
-    sink = _ListSink()
+    sink = EpisodeList()
     runner = RolloutRunner(spec, sink)
     make_env = runner._env
     wrapped = {}

@@ -15,7 +15,7 @@ from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
-from aerobench.train.bc import BCConfig, train_bc, within_budget
+from aerobench.train.bc import BCConfig, select_episodes, train_bc, within_budget
 from aerobench.train.common import read_scalars, torch_threads
 
 BIN = Path(sys.executable).parent
@@ -203,6 +203,20 @@ def test_bc_trains_within_a_data_budget(state_dataset, tmp_path):
         train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "tiny"), steps=1, progress=False, max_transitions=1))
     with pytest.raises(ValueError, match="--max-transitions must be a positive integer"):
         BCConfig(dataset=str(state_dataset), out=str(tmp_path), max_transitions=0)
+
+
+def test_bc_trains_on_the_chosen_object_classes(state_dataset, tmp_path):
+    rows = read_jsonl(state_dataset / "meta" / "aerobench_episodes.jsonl")
+    both = ("S", "T")
+    assert select_episodes(state_dataset, both, ("master_chef_can",)) == select_episodes(state_dataset, both) == \
+        [int(r["dataset_episode_index"]) for r in rows]
+    with pytest.raises(ValueError, match="has no episode of bowl; its objects: master_chef_can"):
+        select_episodes(state_dataset, both, ("bowl", "master_chef_can"))
+    run = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "can"), steps=1, hidden=(8,), progress=False,
+                            outcomes=both, objects=("master_chef_can",)))
+    assert json.loads((run / "config.json").read_text())["data"]["objects"] == ["master_chef_can"]
+    with pytest.raises(ValueError, match="--objects needs at least one object class"):
+        BCConfig(dataset=str(state_dataset), out=str(tmp_path), objects=())
 
 
 def test_bc_errors_are_one_line(state_dataset, tmp_path):
