@@ -87,16 +87,25 @@ def parked(task_state: np.ndarray, window: int, still: float) -> dict | None:
     return {"height_m": round(float(g["height"][-1]), 4), "xy_m": round(float(g["xy"][-1]), 4)}
 
 
-def expert_labels_near(frames, objects: dict[int, str], state: dict, obj: str, still: float) -> dict:
-    """Expert frames near a parked state (height within 1 cm, horizontal error below 5 mm, speed below `still`), of
-    the same object class and of the others, and their mean vertical command (normalized action; negative: down)."""
-    g = geometry(np.stack(frames[TASK_STATE_KEY].to_numpy()))
-    near = (np.abs(g["height"] - state["height_m"]) < NEAR_HEIGHT_M) & (g["xy"] < NEAR_XY_M) & (g["speed"] < still)
-    same = frames["episode_index"].map(lambda e: objects[int(e)] == obj).to_numpy()
-    vz = np.stack(frames["action"].to_numpy())[:, 2]
+def labelled_frames(frames, objects: dict[int, str]) -> dict[str, np.ndarray]:
+    """Every expert frame's geometry, vertical command (normalized action; negative: down) and object class, read
+    once for all the parked states a run looks up."""
+    table = geometry(np.stack(frames[TASK_STATE_KEY].to_numpy()))
+    table["vz"] = np.stack(frames["action"].to_numpy())[:, 2]
+    table["object"] = np.array([objects[int(e)] for e in frames["episode_index"].to_numpy()])
+    return table
+
+
+def expert_labels_near(table: dict[str, np.ndarray], state: dict, obj: str, still: float) -> dict:
+    """Expert frames (`labelled_frames`) near a parked state (height within 1 cm, horizontal error below 5 mm, speed
+    below `still`), of the same object class and of the others, and their mean vertical command."""
+    near = (np.abs(table["height"] - state["height_m"]) < NEAR_HEIGHT_M) & (table["xy"] < NEAR_XY_M) & \
+        (table["speed"] < still)
+    same = table["object"] == obj
     out = {}
     for name, mask in (("same_class", near & same), ("other_classes", near & ~same)):
-        out[name] = {"frames": int(mask.sum()), "mean_vz_command": round(float(vz[mask].mean()), 3) if mask.any() else None}
+        vz = table["vz"][mask]
+        out[name] = {"frames": int(mask.sum()), "mean_vz_command": round(float(vz.mean()), 3) if len(vz) else None}
     return out
 
 
@@ -152,10 +161,10 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"dataset": str(root), "still_mps": args.still, "expert": table}
     if args.checkpoint:
         chosen = tuple(args.objects.split(",")) if args.objects else None
-        rows = []
+        rows, table = [], labelled_frames(frames, objects)
         for ep in policy_episodes(args.checkpoint, args.setting, chosen, args.episodes, args.seed):
             stop = parked(ep.frames["task_state"], args.window, args.still) if ep.num_frames else None
-            near = expert_labels_near(frames, objects, stop, ep.record.object, args.still) if stop else None
+            near = expert_labels_near(table, stop, ep.record.object, args.still) if stop else None
             rows.append({"object": ep.record.object, "seed": ep.record.seed, "mode": ep.record.mode,
                          "parked": stop, "expert_frames_near": near})
         print(f"policy {args.checkpoint}: {args.episodes} episodes, seed {args.seed}")

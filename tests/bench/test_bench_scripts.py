@@ -272,7 +272,7 @@ def test_descent_onset_finds_the_switch_the_still_frames_and_a_parked_episode(tm
     still_end = np.stack([_pick_frame(0.18, 0.001, 0.0)[0]] * 10)
     stop = descent_onset.parked(still_end, window=5, still=0.01)
     assert stop == {"height_m": 0.18, "xy_m": 0.001}
-    near = descent_onset.expert_labels_near(frames, objects, stop, "box", still=0.01)
+    near = descent_onset.expert_labels_near(descent_onset.labelled_frames(frames, objects), stop, "box", still=0.01)
     assert near["same_class"] == {"frames": 0, "mean_vz_command": None}
     assert near["other_classes"]["frames"] == 4
     # moving at the end, or down at the grasp point: not parked
