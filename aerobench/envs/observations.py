@@ -15,7 +15,7 @@ orientation, and linear and angular velocities. Layout (`STATE_FIELDS`, in this 
 The arm platform appends its three arm joint positions and velocities (shoulder, elbow, wrist): 25 values.
 Cameras (`drone_front`, `drone_hand`, `drone_own`, RGB-D 128x128) and the language instruction come separately.
 
-The task state (`TASK_STATE_FIELDS`, 26 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
+The task state (`TASK_STATE_FIELDS`, 27 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
 `observation.environment_state`) is what state-based policies (BC, PPO, the state-only ACT / Diffusion variants)
 read, as ManiSkill's state observations do: the active skill's geometry as *relative* vectors (so a policy learns
 "fly towards the grasp point", not the absolute start positions of its training episodes), the heading error the
@@ -37,8 +37,13 @@ use it. Positions in metres, in the env (world) frame unless the name says body:
 | 20-22 | angular_velocity_body | rad/s, body frame |
 | 23-24 | gravity_body_xy | x and y of the unit gravity direction in the body frame (roll and pitch) |
 | 25 | altitude | airframe height above the floor |
+| 26 | grasp_side_room | half of (the open gripper's width - the target object's width across its grasp): the room each finger leaves beside the object, which sets how exactly a grasp must be aligned (master chef can 4 mm, sugar box 36 mm); 0 without an object (version 3) |
 
-The arm platform appends its three arm joint positions (`arm_position`, rad): 29 values.
+The arm platform appends its three arm joint positions (`arm_position`, rad): 30 values.
+
+Older task states (`task_state_fields(with_arm, version)`): versions 1 and 2 have no `grasp_side_room` (26 values, 29
+with the arm). A policy reads its fields by name from whichever layout a vector has (its width tells which), so a
+checkpoint trained on an older dataset acts in today's env unchanged (`task_state_in_layout`).
 """
 
 from __future__ import annotations
@@ -68,12 +73,15 @@ TASK_STATE_FIELDS = (
     ("angular_velocity_body", 3),
     ("gravity_body_xy", 2),
     ("altitude", 1),
+    ("grasp_side_room", 1),
 )
 TASK_STATE_DIM = sum(n for _, n in TASK_STATE_FIELDS)
-assert TASK_STATE_DIM == 26
+assert TASK_STATE_DIM == 27
 # Version of the task state's meaning, saved with every state policy. 1: Place `progress` was always 0. 2: it is the
 # set-down time (the place expert releases on it). A version-1 checkpoint is fed Place progress 0 (policies.inputs).
-TASK_STATE_VERSION = 2
+# 3: `grasp_side_room` added (the pick expert's alignment before descending depends on it; docs/experiments.md).
+TASK_STATE_VERSION = 3
+FIELD_SINCE_VERSION = {"grasp_side_room": 3}  # fields an older layout does not have
 GRASP_CONFIRM_STEPS = 3  # control steps of a continuous pinch before `is_grasp_confirmed` reads 1
 STATE_DIM = sum(n for _, n in STATE_FIELDS)
 assert STATE_DIM == 19
@@ -103,12 +111,37 @@ def state_field_names(with_arm: bool) -> list[str]:
     return _names(STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()))
 
 
-def task_state_fields(with_arm: bool) -> tuple:
-    return TASK_STATE_FIELDS + ((("arm_position", 3),) if with_arm else ())
+def task_state_fields(with_arm: bool, version: int = TASK_STATE_VERSION) -> tuple:
+    """The task state's `(field, size)` layout in `version` (today's by default)."""
+    fields = tuple(f for f in TASK_STATE_FIELDS if FIELD_SINCE_VERSION.get(f[0], 1) <= version)
+    return fields + ((("arm_position", 3),) if with_arm else ())
 
 
-def task_state_field_names(with_arm: bool = False) -> list[str]:
-    return _names(task_state_fields(with_arm))
+def task_state_field_names(with_arm: bool = False, version: int = TASK_STATE_VERSION) -> list[str]:
+    return _names(task_state_fields(with_arm, version))
+
+
+def task_state_layout(width: int, with_arm: bool) -> tuple:
+    """The layout of a task state vector `width` values wide: today's or an older version's (a dataset or a
+    checkpoint made before a field was added)."""
+    for version in range(TASK_STATE_VERSION, 0, -1):
+        fields = task_state_fields(with_arm, version)
+        if sum(n for _, n in fields) == width:
+            return fields
+    raise ValueError(f"a task state of {width} values is no layout of this aerobench's "
+                     f"({TASK_STATE_DIM + 3 * with_arm} today); re-export the dataset with aerobench generate")
+
+
+def task_state_in_layout(task_state: torch.Tensor, with_arm: bool, width: int) -> torch.Tensor:
+    """`task_state` (`(..., K)`, any version's layout) in the layout `width` values wide: the fields that layout has,
+    by name (a LeRobot policy trained on an older dataset reads the width its dataset had)."""
+    if task_state.shape[-1] == width:
+        return task_state
+    have, want = field_slices(task_state_layout(task_state.shape[-1], with_arm)), task_state_layout(width, with_arm)
+    missing = [name for name, _ in want if name not in have]
+    if missing:
+        raise ValueError(f"this task state has no {missing}; the policy needs a newer aerobench")
+    return torch.cat([task_state[..., have[name]] for name, _ in want], dim=-1)
 
 
 def field_slices(fields) -> dict[str, slice]:

@@ -83,8 +83,7 @@ class PickExpert(SkillExpert):
         self.route = RouteFollower(self.n, self.device) if after_stage else None
         self.back_yaw = torch.zeros(self.n, device=self.device)  # the heading kept while backing off
         self.turned = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # turned to the grasp heading after it
-        side_room = (env.platform.gripper.max_opening_m - env.target_grasp_width) / 2
-        self.align_tolerance = (side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
+        self.align_tolerance = (env.grasp_side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
         self.lift_from = torch.zeros(self.n, 3, device=self.device)
         self.retries = torch.zeros(self.n, dtype=torch.long, device=self.device)
         self.drawn = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # enclosed: drawn to the front

@@ -21,6 +21,7 @@ from ..envs.observations import (
     TASK_STATE_VERSION,
     field_slices,
     task_state_fields,
+    task_state_layout,
 )
 from ..envs.tasks import SKILLS
 
@@ -63,12 +64,16 @@ class InputSpec:
         return bool(self.task_fields)
 
     @functools.lru_cache(maxsize=8)  # noqa: B019 - a few frozen specs per process; read once per control step
-    def _indices(self, with_arm: bool) -> tuple[torch.Tensor, torch.Tensor]:
+    def _indices(self, with_arm: bool, task_width: int | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Where the fields sit: in the proprio state of the platform and in the task state layout `task_width` values
+        wide (today's, or an older version's: the fields are found by name)."""
         state = field_slices(STATE_FIELDS + (ARM_STATE_FIELDS if with_arm else ()))
-        task = field_slices(task_state_fields(with_arm))
+        layout = task_state_layout(task_width, with_arm) if task_width is not None else task_state_fields(with_arm)
+        task = field_slices(layout)
         missing = [f for f in self.state_fields if f not in state] + [f for f in self.task_fields if f not in task]
         if missing:
-            raise ValueError(f"the {'arm' if with_arm else 'gripper'} platform's observations have no {missing}")
+            where = "" if layout == task_state_fields(with_arm) else " in this older task state layout"
+            raise ValueError(f"the {'arm' if with_arm else 'gripper'} platform's observations have no {missing}{where}")
 
         def gather(slices: dict[str, slice], names: tuple[str, ...]) -> torch.Tensor:
             return torch.tensor([i for n in names for i in range(slices[n].start, slices[n].stop)], dtype=torch.long)
@@ -79,7 +84,7 @@ class InputSpec:
         """One frame's inputs `(T, F)` from proprio states `(T, S)` and task states `(T, K)` (the platform follows
         from the proprio size)."""
         with_arm = state.shape[-1] > sum(n for _, n in STATE_FIELDS)
-        si, ti = self._indices(with_arm)
+        si, ti = self._indices(with_arm, task_state.shape[-1] if task_state is not None else None)
         parts = [state.float()[..., si]]
         if self.task_fields:
             if task_state is None:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..envs.observations import task_state_in_layout
 from ..export.depth import encode_depth_mm
 from .provenance import STARTS_FILE, TrainingStarts, dataset_starts, read_starts, recorded_path
 from .registry import register_policy
@@ -146,8 +147,10 @@ class LeRobotPolicy:
         for key in self.inputs:
             if key == "observation.state":
                 out[key] = obs["agent"]["state"].float()
-            elif key == "observation.environment_state":  # the privileged task state (envs.observations)
-                out[key] = self.env.task_state()
+            elif key == "observation.environment_state":  # the privileged task state (envs.observations), in the
+                # layout the checkpoint's dataset had (an older one lacks fields added since)
+                width = self.inputs[key].shape[0]
+                out[key] = task_state_in_layout(self.env.task_state(), self.env.platform.arm is not None, width)
             elif key.startswith("observation.images."):
                 rgb = obs["sensor_data"][key.removeprefix("observation.images.")]["rgb"]
                 out[key] = rgb.permute(0, 3, 1, 2).float() / 255.0

@@ -17,13 +17,13 @@ uninterrupted one would: resuming from step N to 2N gives the same weights as on
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
 from torch.nn import functional as F
 
-from ..envs.observations import STATE_DIM, task_state_fields
+from ..envs.observations import STATE_DIM, TASK_STATE_VERSION, task_state_field_names, task_state_fields
 from ..export.features import VIDEO_BACKEND
 from ..export.sink import dataset_task_state_version
 from ..policies.inputs import InputSpec
@@ -113,10 +113,12 @@ class BCConfig:
             raise ValueError(f"--hidden needs positive sizes, e.g. 256,256; got {self.hidden}")
         self.input_spec(with_arm=True)  # unknown field names and a bad history fail here
 
-    def input_spec(self, with_arm: bool) -> InputSpec:
-        """What the policy reads on this platform (`task_fields=None`: all of its task state)."""
-        task = self.task_fields if self.task_fields is not None else tuple(n for n, _ in task_state_fields(with_arm))
-        return InputSpec(state_fields=self.state_fields, task_fields=task, history=self.history)
+    def input_spec(self, with_arm: bool, task_state_version: int = TASK_STATE_VERSION) -> InputSpec:
+        """What the policy reads on this platform from a task state of that version (`task_fields=None`: all of it)."""
+        layout = task_state_fields(with_arm, task_state_version)
+        task = self.task_fields if self.task_fields is not None else tuple(n for n, _ in layout)
+        return InputSpec(state_fields=self.state_fields, task_fields=task, history=self.history,
+                         task_state_version=task_state_version)
 
 
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
@@ -170,13 +172,14 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         if missing:
             raise ValueError(f"{root} has no camera features ({', '.join(missing)}); export with cameras or drop --images")
     with_arm = ds.features[STATE_KEY]["shape"][0] > STATE_DIM
-    inputs = replace(config.input_spec(with_arm), task_state_version=dataset_task_state_version(root))
+    version = dataset_task_state_version(root)
+    inputs = config.input_spec(with_arm, version)
     columns = ["episode_index", STATE_KEY, ACTION_KEY]
     if inputs.reads_task_state:
         if TASK_STATE_KEY not in ds.features:
             raise ValueError(f"{root} has no {TASK_STATE_KEY} (exported by an older aerobench); re-export it, or "
                              f"train on proprio fields alone (--task-fields '' --state-fields ...)")
-        if ds.features[TASK_STATE_KEY]["names"] != [f"{n}.{i}" for n, k in task_state_fields(with_arm) for i in range(k)]:
+        if ds.features[TASK_STATE_KEY]["names"] != task_state_field_names(with_arm, version):
             raise ValueError(f"{root}'s {TASK_STATE_KEY} has another layout than this aerobench's task state "
                              f"(exported by an older aerobench); re-export it with aerobench generate")
         columns.append(TASK_STATE_KEY)

@@ -62,6 +62,9 @@ def test_pick_task_state_equals_a_hand_computation(pick_env):
     assert torch.allclose(f["linear_velocity"], torch.zeros(3), atol=1e-5)  # set_drone leaves it still and level
     assert torch.allclose(f["gravity_body_xy"], torch.zeros(2), atol=1e-5)
     assert f["altitude"].item() == pytest.approx(float(position[2] - base.workspace_lo[0, 2]), abs=1e-4)
+    # the open fingers (11 cm) around the box's 6 cm grasp width: 2.5 cm each side
+    assert f["grasp_side_room"].item() == pytest.approx((platform.gripper.max_opening_m - spec.grasp_width_m) / 2)
+    assert f["grasp_side_room"].item() == pytest.approx(0.025, abs=1e-6)
 
     # a box is symmetric under a half turn: 0.3 rad past the other grasp heading reads the same error
     f = _move_drone(base, position, planned + math.pi + 0.3)
@@ -77,6 +80,7 @@ def test_a_round_objects_heading_error_wraps_at_a_quarter_turn():
         assert abs(float(wrap_to_period(torch.tensor(planned), math.pi / 2))) < 1e-5  # a room axis
         f = _move_drone(base, base.target.pose.p[0].cpu() + torch.tensor([0.0, 0.3, 0.5]), planned + 0.9)
         assert f["heading_error"].item() == pytest.approx(math.pi / 2 - 0.9, abs=1e-4)
+        assert f["grasp_side_room"].item() == pytest.approx(0.004, abs=1e-6)  # 11 cm around the can's 10.2 cm
     finally:
         env.close()
 

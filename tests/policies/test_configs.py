@@ -30,6 +30,15 @@ def test_a_setting_config_is_the_tidy_house_config_on_that_settings_data(policy,
     assert (config["output_dir"], config["job_name"]) == (f"outputs/train/{policy}_{name}", f"{policy}_{name}")
     if "path" in reference["policy"]:  # pi0 / pi0.5: the folder `aerobench pi-init` writes for this setting
         assert config["policy"] == {**reference["policy"], "path": f"outputs/pi/{policy}_{name}"}
+    elif "observation.environment_state" in reference["policy"].get("input_features", {}):
+        # the task state is as wide as the setting's platform's: the arm adds its joint angles
+        from aerobench.envs.observations import task_state_fields
+        from aerobench.envs.tasks import SETTINGS as TASK_SETTINGS
+
+        width = sum(n for _, n in task_state_fields(with_arm=TASK_SETTINGS[setting].chain_platform == "arm"))
+        features = {**reference["policy"]["input_features"],
+                    "observation.environment_state": {"type": "ENV", "shape": [width]}}
+        assert config["policy"] == {**reference["policy"], "input_features": features}
     else:
         assert config["policy"] == reference["policy"]
     rest = {k: v for k, v in config.items() if k not in ("dataset", "output_dir", "job_name", "policy")}

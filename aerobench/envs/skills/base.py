@@ -486,7 +486,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         return extra
 
     def task_state(self) -> torch.Tensor:
-        """`(N, 26)` task state (`(N, 29)` with the arm) in the layout of `observations.TASK_STATE_FIELDS`: the active
+        """`(N, 27)` task state (`(N, 30)` with the arm) in the layout of `observations.TASK_STATE_FIELDS`: the active
         skill's relative goal geometry, the grasp confirmation and the flight state, for state-based policies."""
         self.evaluate()  # the step's context (computed once per control step)
         ctx, n = self._ctx, self.num_envs
@@ -515,10 +515,17 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             state.angular_velocity_body,
             -state.rotation[:, 2, :2],  # gravity (0, 0, -1) in the body frame: -R^T e_z, its x and y
             (state.position[:, 2] - self.workspace_lo[:, 2])[:, None],
+            (self.grasp_side_room if ctx.object_pose is not None else torch.zeros(n, device=self.device))[:, None],
         ]
         if self.platform.arm is not None:
             parts.append(self.agent.arm_qpos())
         return torch.cat(parts, dim=-1).float()
+
+    @property
+    def grasp_side_room(self) -> torch.Tensor:
+        """`(N,)` the room each open finger leaves beside the target object across its grasp: how exactly a grasp
+        from above must be aligned."""
+        return ((self.platform.gripper.max_opening_m - self.target_grasp_width) / 2).clamp_min(0.0)
 
     def get_instruction(self, env: int = 0) -> str:
         return self.instructions[env]
