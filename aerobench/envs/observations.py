@@ -48,6 +48,8 @@ checkpoint trained on an older dataset acts in today's env unchanged (`task_stat
 
 from __future__ import annotations
 
+import functools
+
 import torch
 
 from .control.virtual_joints import AirframeState
@@ -132,16 +134,23 @@ def task_state_layout(width: int, with_arm: bool) -> tuple:
                      f"({TASK_STATE_DIM + 3 * with_arm} today); re-export the dataset with aerobench generate")
 
 
-def task_state_in_layout(task_state: torch.Tensor, with_arm: bool, width: int) -> torch.Tensor:
-    """`task_state` (`(..., K)`, any version's layout) in the layout `width` values wide: the fields that layout has,
-    by name (a LeRobot policy trained on an older dataset reads the width its dataset had)."""
-    if task_state.shape[-1] == width:
-        return task_state
-    have, want = field_slices(task_state_layout(task_state.shape[-1], with_arm)), task_state_layout(width, with_arm)
+@functools.lru_cache(maxsize=16)
+def _layout_columns(have_width: int, with_arm: bool, width: int) -> tuple[int, ...]:
+    """The columns of a task state `have_width` wide that make up the layout `width` wide (looked up once)."""
+    have, want = field_slices(task_state_layout(have_width, with_arm)), task_state_layout(width, with_arm)
     missing = [name for name, _ in want if name not in have]
     if missing:
         raise ValueError(f"this task state has no {missing}; the policy needs a newer aerobench")
-    return torch.cat([task_state[..., have[name]] for name, _ in want], dim=-1)
+    return tuple(i for name, _ in want for i in range(have[name].start, have[name].stop))
+
+
+def task_state_in_layout(task_state: torch.Tensor, with_arm: bool, width: int) -> torch.Tensor:
+    """`task_state` (`(..., K)`, any version's layout) in the layout `width` values wide: the fields that layout has,
+    by name (a LeRobot policy trained on an older dataset reads the width its dataset had; called every step)."""
+    if task_state.shape[-1] == width:
+        return task_state
+    columns = _layout_columns(task_state.shape[-1], with_arm, width)
+    return task_state[..., torch.tensor(columns, device=task_state.device)]
 
 
 def field_slices(fields) -> dict[str, slice]:
