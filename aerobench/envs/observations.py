@@ -15,7 +15,7 @@ orientation, and linear and angular velocities. Layout (`STATE_FIELDS`, in this 
 The arm platform appends its three arm joint positions and velocities (shoulder, elbow, wrist): 25 values.
 Cameras (`drone_front`, `drone_hand`, `drone_own`, RGB-D 128x128) and the language instruction come separately.
 
-The task state (`TASK_STATE_FIELDS`, 27 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
+The task state (`TASK_STATE_FIELDS`, 31 values; `AeroSkillEnv.task_state()`, exported as LeRobot's
 `observation.environment_state`) is what state-based policies (BC, PPO, the state-only ACT / Diffusion variants)
 read, as ManiSkill's state observations do: the active skill's geometry as *relative* vectors (so a policy learns
 "fly towards the grasp point", not the absolute start positions of its training episodes), the heading error the
@@ -38,11 +38,13 @@ use it. Positions in metres, in the env (world) frame unless the name says body:
 | 23-24 | gravity_body_xy | x and y of the unit gravity direction in the body frame (roll and pitch) |
 | 25 | altitude | airframe height above the floor |
 | 26 | grasp_side_room | half of (the open gripper's width - the target object's width across its grasp): the room each finger leaves beside the object, which sets how exactly a grasp must be aligned (master chef can 4 mm, sugar box 36 mm); 0 without an object (version 3) |
+| 27 | doorway_ahead | 1 while the active goal is in another room than the airframe centre (PackageDelivery's Place from the street, a transport between rooms), else 0 (version 4) |
+| 28-30 | doorway_pos | the centre of the first doorway on the room route to the goal (mid-wall, 1.5 m up) - airframe centre; zeros when `doorway_ahead` is 0 (`scenes.room_routes`: the scene's rooms and openings, not the expert's planned path) (version 4) |
 
-The arm platform appends its three arm joint positions (`arm_position`, rad): 30 values.
+The arm platform appends its three arm joint positions (`arm_position`, rad): 34 values.
 
-Older task states (`task_state_fields(with_arm, version)`): versions 1 and 2 have no `grasp_side_room` (26 values, 29
-with the arm). A policy reads its fields by name from whichever layout a vector has (its width tells which), so a
+Older task states (`task_state_fields(with_arm, version)`): versions 1 and 2 have neither `grasp_side_room` nor the
+doorway (26 values, 29 with the arm), version 3 no doorway (27, 30). A policy reads its fields by name from whichever layout a vector has (its width tells which), so a
 checkpoint trained on an older dataset acts in today's env unchanged (`task_state_in_layout`).
 """
 
@@ -76,14 +78,17 @@ TASK_STATE_FIELDS = (
     ("gravity_body_xy", 2),
     ("altitude", 1),
     ("grasp_side_room", 1),
+    ("doorway_ahead", 1),
+    ("doorway_pos", 3),
 )
 TASK_STATE_DIM = sum(n for _, n in TASK_STATE_FIELDS)
-assert TASK_STATE_DIM == 27
+assert TASK_STATE_DIM == 31
 # Version of the task state's meaning, saved with every state policy. 1: Place `progress` was always 0. 2: it is the
 # set-down time (the place expert releases on it). A version-1 checkpoint is fed Place progress 0 (policies.inputs).
 # 3: `grasp_side_room` added (the pick expert's alignment before descending depends on it; docs/experiments.md).
-TASK_STATE_VERSION = 3
-FIELD_SINCE_VERSION = {"grasp_side_room": 3}  # fields an older layout does not have
+# 4: `doorway_ahead`, `doorway_pos` added (a goal in another room: where the opening is; docs/experiments.md).
+TASK_STATE_VERSION = 4
+FIELD_SINCE_VERSION = {"grasp_side_room": 3, "doorway_ahead": 4, "doorway_pos": 4}  # fields an older layout lacks
 GRASP_CONFIRM_STEPS = 3  # control steps of a continuous pinch before `is_grasp_confirmed` reads 1
 STATE_DIM = sum(n for _, n in STATE_FIELDS)
 assert STATE_DIM == 19

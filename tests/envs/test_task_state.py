@@ -107,3 +107,25 @@ def test_place_goal_is_measured_from_the_held_object():
         assert confirmed[:6] == [1.0] * 6 and confirmed[-1] == 0.0
     finally:
         env.close()
+
+
+def test_a_goal_in_another_room_shows_the_doorway_to_fly_through():
+    """PackageDelivery Place: the cabinet is in the lobby. From the street the task state points at the entrance
+    doorway (its centre minus the airframe centre); once inside, at nothing."""
+    env = gym.make("AeroPlace-v1", setting="PackageDelivery", obs_mode="state_dict", object="package")
+    try:
+        base = env.unwrapped
+        env.reset(seed=3, options={"reconfigure": True})
+        layout = base.layouts[0]
+        (door,) = layout.doorways
+        assert door.rooms == ("street", "lobby")
+        f = _fields(base.task_state()[0].cpu())  # the Place start: 0.5-1 m from the cabinet, inside
+        assert f["doorway_ahead"].item() == 0.0 and torch.equal(f["doorway_pos"], torch.zeros(3))
+        entrance = torch.tensor(layout.nav_points["the building entrance"])  # 1 m outside the doorway
+        yaw = float(base.agent.airframe_state().yaw[0])
+        f = _move_drone(base, entrance, yaw)
+        assert f["doorway_ahead"].item() == 1.0
+        assert torch.allclose(f["doorway_pos"], torch.tensor(door.center) - entrance, atol=1e-4)
+        assert torch.linalg.norm(f["doorway_pos"][:2]).item() == pytest.approx(1.0 + 0.125, abs=1e-3)
+    finally:
+        env.close()

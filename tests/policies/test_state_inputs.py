@@ -57,24 +57,32 @@ def test_a_policy_reads_the_task_state_in_the_version_it_was_trained_on():
 
 
 def test_a_policy_of_an_older_layout_reads_its_fields_by_name_from_todays_task_state():
-    """Version 3 added `grasp_side_room` before the arm's fields: a version-2 policy (26 values, 29 with the arm) gets
-    the same inputs from a version-2 vector (its dataset) and from today's (the env it acts in)."""
+    """Version 3 added `grasp_side_room`, version 4 the doorway, each before the arm's fields: a version-2 or -3 policy
+    gets the same inputs from a vector of its version (its dataset) and from today's (the env it acts in)."""
+    added = {2: ("grasp_side_room", "doorway_ahead", "doorway_pos"), 3: ("doorway_ahead", "doorway_pos")}
+    widths = {(False, 2): 26, (True, 2): 29, (False, 3): 27, (True, 3): 30}
     for with_arm in (False, True):
         today = task_state_fields(with_arm)
-        old = task_state_fields(with_arm, version=2)
-        assert [n for n, _ in old] == [n for n, _ in today if n != "grasp_side_room"]
-        width, old_width = sum(n for _, n in today), sum(n for _, n in old)
-        assert (width, old_width) == ((30, 29) if with_arm else (27, 26))
-        now = torch.randn(3, width)
-        side_room = field_slices(today)["grasp_side_room"].start
-        recorded = torch.cat([now[:, :side_room], now[:, side_room + 1 :]], dim=-1)  # the same state, recorded in v2
-        assert torch.equal(task_state_in_layout(now, with_arm, old_width), recorded)  # what an older ACT is fed
-        state = torch.zeros(3, STATE_DIM + (6 if with_arm else 0))
-        spec = InputSpec(task_fields=tuple(n for n, _ in old), task_state_version=2)
-        assert torch.equal(spec.frame(state, now), spec.frame(state, recorded))
-        assert torch.equal(spec.frame(state, recorded), recorded)
+        width = sum(n for _, n in today)
+        assert width == (34 if with_arm else 31)
+        for version, missing in added.items():
+            old = task_state_fields(with_arm, version=version)
+            assert [n for n, _ in old] == [n for n, _ in today if n not in missing]
+            old_width = sum(n for _, n in old)
+            assert old_width == widths[(with_arm, version)]
+            now = torch.randn(3, width)
+            slices = field_slices(today)
+            keep = [i for name, _ in old for i in range(slices[name].start, slices[name].stop)]
+            recorded = now[:, keep]  # the same state, recorded in the older version
+            assert torch.equal(task_state_in_layout(now, with_arm, old_width), recorded)  # what an older ACT is fed
+            state = torch.zeros(3, STATE_DIM + (6 if with_arm else 0))
+            spec = InputSpec(task_fields=tuple(n for n, _ in old), task_state_version=version)
+            assert torch.equal(spec.frame(state, now), spec.frame(state, recorded))
+            assert torch.equal(spec.frame(state, recorded), recorded)
     with pytest.raises(ValueError, match="no \\['grasp_side_room'\\] in this older task state layout"):
         InputSpec(task_fields=("grasp_side_room",)).frame(torch.zeros(1, STATE_DIM), torch.zeros(1, 26))
+    with pytest.raises(ValueError, match="no \\['doorway_pos'\\] in this older task state layout"):
+        InputSpec(task_fields=("doorway_pos",)).frame(torch.zeros(1, STATE_DIM), torch.zeros(1, 27))
     with pytest.raises(ValueError, match="a task state of 13 values is no layout"):
         InputSpec().frame(torch.zeros(1, STATE_DIM), torch.zeros(1, 13))
 

@@ -46,7 +46,7 @@ from .furniture import (
     wardrobe,
 )
 from .kitchen import CEILING_HEIGHT_M, KITCHEN_DEPTH_M, KITCHEN_WIDTH_M, Furnishing, furnish_kitchen
-from .layout import Box, Room, SceneLayout, Vec2, Vec3
+from .layout import Box, Doorway, Room, SceneLayout, Vec2, Vec3
 
 ROOM_WIDTH_M = {  # the bottom row draws from these; the top row splits the same width, each room >= its minimum
     "living room": (4.6, 5.8),
@@ -128,10 +128,15 @@ def _try_rooms(rng: np.random.Generator, with_kitchen: bool) -> SceneLayout | No
         placers[upper].reserve((x, ym + h + 0.5), (w / 2 + 0.25, 0.5))
     placers[bottom[0]].reserve((xs - h - 0.5, oy), (0.5, ow / 2 + 0.25))
     placers[bottom[1]].reserve((xs + h + 0.5, oy), (0.5, ow / 2 + 0.25))
+    doorways = (
+        Doorway((door_x[0], ym, 1.5), (bottom[0], top[0]), dw[0]),
+        Doorway((door_x[1], ym, 1.5), (bottom[1], top[1]), dw[1]),
+        Doorway((xs, oy, 1.5), (bottom[0], bottom[1]), ow),
+    )
     nav: dict[str, Vec3] = {
-        f"the doorway to the {top[0]}": (door_x[0], ym, 1.5),
-        f"the doorway to the {top[1]}": (door_x[1], ym, 1.5),
-        "the doorway to the dining room": (xs, oy, 1.5),
+        f"the doorway to the {top[0]}": doorways[0].center,
+        f"the doorway to the {top[1]}": doorways[1].center,
+        "the doorway to the dining room": doorways[2].center,
     }
 
     pieces: list[Piece] = []
@@ -169,7 +174,7 @@ def _try_rooms(rng: np.random.Generator, with_kitchen: bool) -> SceneLayout | No
     layout = SceneLayout(
         name="home" if with_kitchen else "apartment", boxes=tuple(boxes), supports=supports,
         rooms=tuple(rooms[n] for n in bottom + top), workspace_lo=lo, workspace_hi=hi, nav_points=nav,
-        fixtures=tuple(furnishing.fixtures), **random_lighting(rng),
+        fixtures=tuple(furnishing.fixtures), doorways=doorways, **random_lighting(rng),
     )
     return turn_layout(turn_layout(layout, 0, (-width / 2, -depth / 2)), int(rng.integers(4)))
 

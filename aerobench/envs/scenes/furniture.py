@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..platforms import GRIPPER_PLATFORM
-from .layout import Box, Color, Room, SceneLayout, Support, Vec2, Vec3
+from .layout import Box, Color, Doorway, Room, SceneLayout, Support, Vec2, Vec3
 
 SUPPORT_MARGIN_M = 0.05  # usable top area starts this far in from the furniture's edges
 # Scene requirements of the benchmark issue: the disks hover 0.35 m above a support while picking / placing on it, and
@@ -554,6 +554,7 @@ def turn_layout(layout: SceneLayout, quarter_turns: int, shift: Vec2 = (0.0, 0.0
         workspace_hi=(hi[0], hi[1], layout.workspace_hi[2]),
         nav_points={k: (*pt(*v[:2]), v[2]) for k, v in layout.nav_points.items()},
         fixtures=tuple(replace(f, position=(*pt(*f.position[:2]), f.position[2]), yaw=yaw(f.yaw)) for f in layout.fixtures),
+        doorways=tuple(Doorway((*pt(*d.center[:2]), d.center[2]), d.rooms, d.width) for d in layout.doorways),
         sun_direction=(c * sx - s * sy, s * sx + c * sy, layout.sun_direction[2]),
     )
 

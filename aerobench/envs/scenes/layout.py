@@ -65,6 +65,15 @@ class Room:
 
 
 @dataclass(frozen=True)
+class Doorway:
+    """An opening a drone flies through between two rooms: its centre (mid-wall, at the nav height) and width."""
+
+    center: Vec3
+    rooms: tuple[str, str]
+    width: float
+
+
+@dataclass(frozen=True)
 class ArticulatedFixture:
     """A fridge (hinged door with a vertical bar handle) or a counter drawer (sliding, horizontal handle).
 
@@ -91,6 +100,7 @@ class SceneLayout:
     workspace_hi: Vec3
     nav_points: dict[str, Vec3] = field(default_factory=dict)  # named flight targets ("the room entrance")
     fixtures: tuple[ArticulatedFixture, ...] = ()
+    doorways: tuple[Doorway, ...] = ()  # the openings joining `rooms` (the room graph the routes follow)
     ambient_light: Color = (0.3, 0.3, 0.3)
     sun_direction: Vec3 = (1.0, 1.0, -1.0)
     sun_color: Color = (1.0, 1.0, 1.0)

@@ -33,7 +33,7 @@ from .furniture import (
     turn_layout,
     wall,
 )
-from .layout import Box, Room, SceneLayout, Vec3
+from .layout import Box, Doorway, Room, SceneLayout, Vec3
 
 STREET_LENGTH_M = (16.0, 22.0)
 ROAD_WIDTH_M = (6.0, 7.5)
@@ -148,7 +148,8 @@ def _try_street(rng: np.random.Generator) -> SceneLayout | None:
     nav["the vehicle"] = nav.get("the pickup's cargo bed", (tx, ty, 2.0))
     layout = SceneLayout(
         name="street", boxes=tuple(boxes), supports=supports, rooms=(street, lobby), workspace_lo=lo, workspace_hi=hi,
-        nav_points=nav, **random_lighting(rng, outdoor=True),
+        nav_points=nav, doorways=(Doorway(nav["the doorway to the lobby"], ("street", "lobby"), door_w),),
+        **random_lighting(rng, outdoor=True),
     )
     return turn_layout(layout, int(rng.integers(4)))
 

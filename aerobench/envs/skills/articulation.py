@@ -181,7 +181,8 @@ class ArticulationEvaluator(SkillEvaluator):
         normal = self.handle_normal()
         facing = torch.atan2(-normal[:, 1], -normal[:, 0])
         return GoalFeatures(
-            goal_pos=self.handle_point() - ctx.tcp,
+            goal_point=self.handle_point(),
+            origin=ctx.tcp,
             heading_error=wrap_angle(facing - ctx.state.yaw),
             progress=self.progress(),
         )

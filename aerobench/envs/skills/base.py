@@ -55,6 +55,7 @@ from ..observations import GRASP_CONFIRM_STEPS, heading_frame
 from ..scenes import generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
+from ..scenes.room_routes import RoomRoutes
 from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
 from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
 
@@ -147,6 +148,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         self.static_boxes = pack_boxes([layout.boxes for layout in self.layouts], self.device)
         self.workspace_lo = torch.tensor([layout.workspace_lo for layout in self.layouts], device=self.device)
         self.workspace_hi = torch.tensor([layout.workspace_hi for layout in self.layouts], device=self.device)
+        self.room_routes = RoomRoutes.pack(self.layouts, self.device)
         self._pack_supports()
         self.target: Actor | None = None
         self.target_specs: list[ObjectSpec] = []
@@ -486,23 +488,25 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         return extra
 
     def task_state(self) -> torch.Tensor:
-        """`(N, 27)` task state (`(N, 30)` with the arm) in the layout of `observations.TASK_STATE_FIELDS`: the active
+        """`(N, 31)` task state (`(N, 34)` with the arm) in the layout of `observations.TASK_STATE_FIELDS`: the active
         skill's relative goal geometry, the grasp confirmation and the flight state, for state-based policies."""
         self.evaluate()  # the step's context (computed once per control step)
         ctx, n = self._ctx, self.num_envs
         active = self.active_evaluator_index()
-        goal = torch.zeros(n, 3, device=self.device)
+        goal, goal_point = torch.zeros(n, 3, device=self.device), torch.zeros(n, 3, device=self.device)
         heading_error, progress = torch.zeros(n, device=self.device), torch.zeros(n, device=self.device)
         skill = torch.zeros(n, dtype=torch.long, device=self.device)
         for k, evaluator in enumerate(self.evaluators):  # every evaluator's features, kept where it is active
             mine = active == k
             f = evaluator.goal_features(ctx)
             goal = torch.where(mine[:, None], f.goal_pos, goal)
+            goal_point = torch.where(mine[:, None], f.goal_point, goal_point)
             heading_error = torch.where(mine, f.heading_error, heading_error)
             progress = torch.where(mine, f.progress, progress)
             skill = torch.where(mine, SKILLS.index(evaluator.skill), skill)
         state = ctx.state
         zeros = torch.zeros(n, 3, device=self.device)
+        doorway, ahead = self.room_routes.next_doorway(state.position, goal_point)
         parts = [
             torch.nn.functional.one_hot(skill, len(SKILLS)).float(),
             goal,
@@ -516,6 +520,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             -state.rotation[:, 2, :2],  # gravity (0, 0, -1) in the body frame: -R^T e_z, its x and y
             (state.position[:, 2] - self.workspace_lo[:, 2])[:, None],
             (self.grasp_side_room if ctx.object_pose is not None else torch.zeros(n, device=self.device))[:, None],
+            ahead.float()[:, None],
+            torch.where(ahead[:, None], doorway - state.position, zeros),
         ]
         if self.platform.arm is not None:
             parts.append(self.agent.arm_qpos())

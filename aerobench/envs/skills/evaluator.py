@@ -20,9 +20,15 @@ Flags = list[tuple[FailureCause, torch.Tensor]]
 class GoalFeatures:
     """One skill's part of the task state (`observations.TASK_STATE_FIELDS`), `(N, ...)` for every env."""
 
-    goal_pos: torch.Tensor  # (N, 3) the goal minus the point it is for, world frame
+    goal_point: torch.Tensor  # (N, 3) the goal, world frame (its room decides the doorway field)
+    origin: torch.Tensor  # (N, 3) the point it is for (TCP, object bottom centre, airframe centre)
     heading_error: torch.Tensor  # (N,) rad, wrapped to the goal heading's symmetry
     progress: torch.Tensor  # (N,)
+
+    @property
+    def goal_pos(self) -> torch.Tensor:
+        """`(N, 3)` the goal minus the point it is for."""
+        return self.goal_point - self.origin
 
 
 class SkillEvaluator:

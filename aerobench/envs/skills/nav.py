@@ -74,7 +74,8 @@ class NavEvaluator(SkillEvaluator):
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(
-            goal_pos=self.target - ctx.state.position,
+            goal_point=self.target,
+            origin=ctx.state.position,
             heading_error=wrap_angle(self.heading - ctx.state.yaw),
             progress=torch.zeros_like(self.heading),
         )

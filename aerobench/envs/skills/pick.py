@@ -183,7 +183,8 @@ class PickEvaluator(SkillEvaluator):
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(
-            goal_pos=self.grasp_target(ctx.tcp, ctx.object_pose, ctx.object_rotation) - ctx.tcp,
+            goal_point=self.grasp_target(ctx.tcp, ctx.object_pose, ctx.object_rotation),
+            origin=ctx.tcp,
             heading_error=wrap_to_period(self.heading - ctx.state.yaw, self.heading_period),
             progress=ctx.object_bottom_z - self.rest_z,
         )

@@ -116,7 +116,8 @@ class PlaceEvaluator(SkillEvaluator):
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(
-            goal_pos=self.goal - ctx.object_pose.p,
+            goal_point=self.goal,
+            origin=ctx.object_pose.p,
             heading_error=wrap_angle(self.heading - ctx.state.yaw),
             progress=self.set_down_time(),
         )

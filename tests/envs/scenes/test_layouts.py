@@ -9,11 +9,14 @@ from functools import cache
 
 import numpy as np
 import pytest
+import torch
 
 from aerobench.envs.platforms import GRIPPER_PLATFORM
 from aerobench.envs.scenes import SCENE_GENERATORS, generate_layout
 from aerobench.envs.scenes.articulated import fixture_boxes, fixture_keepout_boxes, get_fixture_spec
 from aerobench.envs.scenes.furniture import box_aabbs, boxes_array, boxes_overlap, point_box_distance
+from aerobench.envs.scenes.layout import Doorway, Room, SceneLayout
+from aerobench.envs.scenes.room_routes import RoomRoutes, first_doorways
 
 SCENES = ("apartment", "kitchen", "street", "home")
 SEEDS = range(50)
@@ -170,6 +173,57 @@ def test_doorways_wide_and_tall_enough(scene, width, height):
         for name, (x, y, _) in doorways.items():
             for z in np.arange(0.05, height, 0.1):
                 assert slice_distance(x, y, z, L.boxes) >= width / 2 - 1e-6, (L.name, name, z)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_doorways_join_the_rooms_and_routes_pass_them_in_order(scene):
+    """Every doorway sits in the wall between its two rooms (in neither rectangle, within a wall's thickness of both)
+    and is the nav point of the same name; the room graph is connected, and the route between two rooms that share
+    no doorway starts through a doorway of the first (the apartment's top rooms: three doorways apart)."""
+    for L in layouts(scene):
+        rooms = {r.name: r for r in L.rooms}
+        assert len(L.doorways) == {"kitchen": 0, "street": 1}.get(scene, 3)
+        assert sorted(L.doorways, key=lambda d: d.center) == sorted(
+            (d for d in L.doorways if d.center in L.nav_points.values()), key=lambda d: d.center)
+        for door in L.doorways:
+            x, y, _ = door.center
+            for name in door.rooms:
+                r = rooms[name]
+                assert not (r.lo[0] < x < r.hi[0] and r.lo[1] < y < r.hi[1])
+                gap = max(r.lo[0] - x, x - r.hi[0], r.lo[1] - y, y - r.hi[1])
+                assert 0.0 <= gap <= 0.15, (L.name, name, gap)
+        hops = first_doorways(L)
+        n = len(L.rooms)
+        assert len(hops) == n * (n - 1)
+        for (a, b), door in hops.items():
+            assert L.rooms[a].name in L.doorways[door].rooms
+            if L.rooms[b].name in L.doorways[door].rooms:
+                assert hops[(b, a)] == door  # adjacent rooms: the shared doorway either way
+        routes = RoomRoutes.pack([L])
+        for (a, b), door in hops.items():
+            ra, rb = L.rooms[a], L.rooms[b]
+            start = torch.tensor([[(ra.lo[0] + ra.hi[0]) / 2, (ra.lo[1] + ra.hi[1]) / 2, 1.0]])
+            goal = torch.tensor([[(rb.lo[0] + rb.hi[0]) / 2, (rb.lo[1] + rb.hi[1]) / 2, 1.0]])
+            point, ahead = routes.next_doorway(start, goal)
+            assert bool(ahead[0]) and point[0].tolist() == pytest.approx(list(L.doorways[door].center))
+            point, ahead = routes.next_doorway(start, start + 0.1)  # the same room: no doorway
+            assert not bool(ahead[0]) and point[0].tolist() == [0.0, 0.0, 0.0]
+        outside = torch.tensor([[L.workspace_hi[0] + 5.0, L.workspace_hi[1] + 5.0, 1.0]])
+        inside = torch.tensor([[(L.rooms[0].lo[0] + L.rooms[0].hi[0]) / 2, (L.rooms[0].lo[1] + L.rooms[0].hi[1]) / 2, 1.0]])
+        assert routes.room_of(torch.cat([inside, outside])).tolist() == [0, len(L.rooms)]
+        assert not bool(routes.next_doorway(outside, inside)[1][0])
+
+
+def test_a_rooms_route_is_the_fewest_doorways():
+    """Hand-made: a corridor of three rooms A - B - C; from A to C the first doorway is A-B's, from C to A B-C's."""
+    rooms = (Room("A", (0.0, 0.0), (2.0, 2.0)), Room("B", (2.1, 0.0), (4.0, 2.0)), Room("C", (4.1, 0.0), (6.0, 2.0)))
+    doors = (Doorway((2.05, 1.0, 1.5), ("A", "B"), 1.0), Doorway((4.05, 1.0, 1.5), ("B", "C"), 1.0))
+    L = SceneLayout("corridor", (), (), rooms, (0.0, 0.0, 0.0), (6.0, 2.0, 3.0), doorways=doors)
+    assert first_doorways(L) == {(0, 1): 0, (0, 2): 0, (1, 0): 0, (1, 2): 1, (2, 1): 1, (2, 0): 1}
+    point, ahead = RoomRoutes.pack([L, L]).next_doorway(torch.tensor([[1.0, 1.0, 1.0], [5.0, 1.0, 1.0]]),
+                                                         torch.tensor([[5.0, 1.5, 0.5], [1.0, 0.5, 0.8]]))
+    assert ahead.tolist() == [True, True]
+    assert torch.allclose(point, torch.tensor([[2.05, 1.0, 1.5], [4.05, 1.0, 1.5]]))
 
 
 @pytest.mark.parametrize("scene", ("apartment", "home"))
