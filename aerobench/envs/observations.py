@@ -44,8 +44,9 @@ use it. Positions in metres, in the env (world) frame unless the name says body:
 The arm platform appends its three arm joint positions (`arm_position`, rad): 34 values.
 
 Older task states (`task_state_fields(with_arm, version)`): versions 1 and 2 have neither `grasp_side_room` nor the
-doorway (26 values, 29 with the arm), version 3 no doorway (27, 30). A policy reads its fields by name from whichever layout a vector has (its width tells which), so a
-checkpoint trained on an older dataset acts in today's env unchanged (`task_state_in_layout`).
+doorway (26 values, 29 with the arm), version 3 no doorway (27, 30). A policy reads its fields by name from whichever
+layout a vector has (its width tells which), so a checkpoint trained on an older dataset acts in today's env
+unchanged (`task_state_in_layout`).
 """
 
 from __future__ import annotations
