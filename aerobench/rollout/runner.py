@@ -337,7 +337,7 @@ class RolloutRunner:
             # the env reports the stage after the step; the stage acting on step t is the one before it
             acting = np.concatenate([[0], stage[:-1]]) if len(stage) else stage
             data["stage"] = acting
-            data["skill"] = np.array([SKILLS.index(evaluators[min(s, len(evaluators) - 1)]) for s in acting], dtype=np.int64)
+            data["skill"] = np.minimum(acting, len(evaluators) - 1)  # into `skills` (the export maps it onto SKILLS)
             data["phase"] = data["phase"].astype(np.int64)
         extra = {
             "env_id": env_id,

@@ -24,6 +24,7 @@ import torch
 from torch.nn import functional as F
 
 from ..envs.observations import STATE_DIM, TASK_STATE_VERSION, task_state_field_names, task_state_fields
+from ..envs.tasks import SKILLS
 from ..export.features import VIDEO_BACKEND
 from ..export.sink import dataset_task_state_version
 from ..policies.inputs import InputSpec
@@ -49,6 +50,7 @@ OUTCOMES = ("S", "F", "T", "I")
 BATCH_SEED_STRIDE = 1_000_003  # batch generator seed = seed * stride + step: distinct streams per seed
 EPISODES_FILE = "meta/aerobench_episodes.jsonl"
 STATE_KEY, ACTION_KEY, TASK_STATE_KEY = "observation.state", "action", "observation.environment_state"
+STAGE_KEY, PHASE_KEY = "annotation.stage", "annotation.phase"
 # Options that may change when a run is resumed (the budget and the bookkeeping cadence).
 RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads")
 
@@ -71,12 +73,18 @@ class BCConfig:
     gripper_weight: float = field(default=1.0, metadata={"help": "weight of the gripper's classification loss"})
     onset_weight: float = field(default=10.0, metadata={"help": "weight of the frames where the expert's gripper "
                                 "command switches (in the classification loss)"})
+    phase_onset_weight: float = field(default=1.0, metadata={"help": "weight, in the flight (and arm) MSE, of the "
+                                      "frames where the expert's phase has just switched (e.g. align -> descend), "
+                                      "from annotation.phase; 1: no weighting"})
     batch_size: int = field(default=256, metadata={"help": "frames per gradient step"})
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
     hidden: tuple[int, ...] = field(default=(256, 256), metadata={"help": "MLP hidden sizes"})
     outcomes: tuple[str, ...] = field(default=("S",), metadata={"help": "episode outcomes to train on (spec: S)"})
     objects: tuple[str, ...] | None = field(default=None, metadata={"help": "train on the episodes of these object "
                                             "classes only (default: every class; e.g. a class left out)"})
+    skills: tuple[str, ...] | None = field(default=None, metadata={"help": "train on the frames of these skill stages "
+                                           "only (a chain's data: one network per stage, given to eval as "
+                                           "--checkpoint pick=A,place=B; default: every frame)"})
     max_transitions: int | None = field(default=None, metadata={"help": "a data budget: train on the leading selected "
                                         "episodes, in dataset order, whose frames total at most this (default: all)"})
     image_size: int = field(default=64, metadata={"help": "camera images are reduced to this many pixels a side"})
@@ -95,8 +103,13 @@ class BCConfig:
         self.objects = None if self.objects is None else tuple(self.objects)
         if self.objects is not None and not self.objects:
             raise ValueError("--objects needs at least one object class (leave it out to train on every class)")
+        self.skills = None if self.skills is None else tuple(self.skills)
+        if self.skills is not None and (not self.skills or set(self.skills) - set(SKILLS)):
+            raise ValueError(f"--skills must name skills of {', '.join(SKILLS)}, got {','.join(self.skills) or 'none'}")
         if self.gripper not in GRIPPER_MODES:
             raise ValueError(f"--gripper must be one of {', '.join(GRIPPER_MODES)}, got {self.gripper!r}")
+        if self.phase_onset_weight < 1:
+            raise ValueError(f"--phase-onset-weight must be at least 1, got {self.phase_onset_weight}")
         if self.gripper_weight < 0 or self.onset_weight < 1:
             raise ValueError("--gripper-weight must not be negative and --onset-weight must be at least 1")
         for name in ("steps", "batch_size", "save_every", "log_every", "image_size", "threads"):
@@ -183,6 +196,14 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
             raise ValueError(f"{root}'s {TASK_STATE_KEY} has another layout than this aerobench's task state "
                              f"(exported by an older aerobench); re-export it with aerobench generate")
         columns.append(TASK_STATE_KEY)
+    if config.skills is not None and TASK_STATE_KEY not in columns:
+        if TASK_STATE_KEY not in ds.features:
+            raise ValueError(f"{root} has no {TASK_STATE_KEY} to tell the stages apart (exported by an older "
+                             f"aerobench); re-export it, or leave out --skills")
+        columns.append(TASK_STATE_KEY)
+    columns += [key for key in (STAGE_KEY, PHASE_KEY) if key in ds.features]
+    if config.phase_onset_weight != 1 and PHASE_KEY not in columns:
+        raise ValueError(f"{root} has no {PHASE_KEY} (exported by an older aerobench); leave out --phase-onset-weight")
     table = ds.hf_dataset.select_columns(columns).with_format("torch")[:]
     if config.max_transitions is not None:
         episodes = within_budget(episodes, table["episode_index"], config.max_transitions)
@@ -190,9 +211,20 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
             raise ValueError(f"--max-transitions {config.max_transitions} is below the first episode's length; "
                              f"raise it or leave it out")
     chosen = torch.isin(table["episode_index"], torch.tensor(episodes)).nonzero()[:, 0]
+    segment = stage_segments(table["episode_index"], table.get(STAGE_KEY))[chosen]
     frames = inputs.frame(table[STATE_KEY][chosen], table[TASK_STATE_KEY][chosen] if inputs.reads_task_state else None)
-    data = {"state": inputs.stack_episodes(frames, table["episode_index"][chosen]),
-            "action": table[ACTION_KEY][chosen].float(), "episode_index": table["episode_index"][chosen]}
+    data = {"state": inputs.stack_episodes(frames, segment),
+            "action": table[ACTION_KEY][chosen].float(), "segment": segment}
+    if PHASE_KEY in columns:
+        data["phase"] = table[PHASE_KEY].reshape(-1)[chosen]
+    if config.skills is not None:  # the stage's skill as the policy's own input shows it: the task state's one-hot
+        skill = table[TASK_STATE_KEY][chosen, : len(SKILLS)].argmax(-1)
+        keep = torch.isin(skill, torch.tensor([SKILLS.index(s) for s in config.skills]))
+        if not keep.any():
+            raise ValueError(f"{root}'s selected episodes have no frame of {','.join(config.skills)}; "
+                             f"choose skills the dataset acts")
+        chosen = chosen[keep]
+        data = {k: v[keep] for k, v in data.items()}
     if config.images:
         frames = {cam: [] for cam in CAMERAS}
         for i in chosen.tolist():  # decoding video is the slow part; done once, kept reduced in memory
@@ -206,7 +238,21 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
              "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames, "inputs": inputs.as_dict()}
     if config.objects is not None:
         facts["objects"] = list(config.objects)
+    if config.skills is not None:
+        facts["skills"] = list(config.skills)
     return data, facts
+
+
+def stage_segments(episode_index: torch.Tensor, stage: torch.Tensor | None) -> torch.Tensor:
+    """A segment id per frame, new wherever the episode or its chain stage changes: a chained evaluation resets a
+    stage's policy (and its input history) when the stage begins, so history frames never cross a stage boundary.
+    Without a stage column (datasets exported before the annotation columns): one segment per episode."""
+    new = torch.ones(len(episode_index), dtype=torch.bool)
+    new[1:] = episode_index[1:] != episode_index[:-1]
+    if stage is not None:
+        stage = stage.reshape(-1)
+        new[1:] |= stage[1:] != stage[:-1]
+    return torch.cumsum(new, 0)
 
 
 def demo_starts(config: BCConfig) -> TrainingStarts:
@@ -214,13 +260,31 @@ def demo_starts(config: BCConfig) -> TrainingStarts:
     return dataset_starts(Path(config.dataset), source=config.dataset)
 
 
-def gripper_targets(action: torch.Tensor, episode_index: torch.Tensor, onset_weight: float) -> tuple[torch.Tensor, torch.Tensor]:
+def gripper_targets(action: torch.Tensor, segment: torch.Tensor, onset_weight: float) -> tuple[torch.Tensor, torch.Tensor]:
     """The close label (1: close) of every frame and its weight: `onset_weight` on the frames where the command
-    switches within an episode, 1 elsewhere."""
+    switches within a segment (an episode's stage), 1 elsewhere."""
     close = is_close(action[:, -1])
     onset = torch.zeros_like(close, dtype=torch.bool)
-    onset[1:] = (close[1:] != close[:-1]) & (episode_index[1:] == episode_index[:-1])
+    onset[1:] = (close[1:] != close[:-1]) & (segment[1:] == segment[:-1])
     return close, torch.where(onset, torch.full_like(close, onset_weight), torch.ones_like(close))
+
+
+def phase_onset_weights(phase: torch.Tensor, segment: torch.Tensor, frames: int, weight: float) -> torch.Tensor:
+    """`weight` on the `frames` frames from each switch of the expert's phase within a segment, 1 elsewhere: the
+    frames where the expert decides (align -> descend), a few among many of near-identical inputs it holds on."""
+    switch = torch.zeros(len(phase), dtype=torch.bool)
+    switch[1:] = (phase[1:] != phase[:-1]) & (segment[1:] == segment[:-1])
+    recent = switch.clone()
+    for k in range(1, frames):
+        recent[k:] |= switch[:-k] & (segment[k:] == segment[:-k])
+    return torch.where(recent, torch.full_like(phase, weight, dtype=torch.float), torch.ones(len(phase)))
+
+
+def flight_mse(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
+    """The MSE of the continuous action dimensions, frames weighted by `weight` (None: the plain mean)."""
+    if weight is None:
+        return F.mse_loss(pred, target)
+    return (weight * (pred - target).pow(2).mean(-1)).sum() / weight.sum()
 
 
 # ── training ──────────────────────────────────────────────────────────────────────────────────────────────────────
@@ -255,7 +319,9 @@ def _train_bc(config: BCConfig) -> Path:
     normalizer = Normalizer(normalization_stats(data["state"], data["action"], config.gripper))
     targets = normalizer.action(data["action"])
     states = normalizer.state(data["state"])
-    close, close_weight = gripper_targets(data["action"], data["episode_index"], config.onset_weight)
+    close, close_weight = gripper_targets(data["action"], data["segment"], config.onset_weight)
+    flight_weight = None if config.phase_onset_weight == 1 else \
+        phase_onset_weights(data["phase"], data["segment"], config.history, config.phase_onset_weight)
     binary = config.gripper == "binary"
 
     seed_everything(config.seed)
@@ -289,9 +355,10 @@ def _train_bc(config: BCConfig) -> Path:
         if binary:  # MSE on the continuous dimensions, weighted cross-entropy on close
             w = close_weight[idx]
             bce = F.binary_cross_entropy_with_logits(pred[:, -1], close[idx], reduction="none")
-            loss = F.mse_loss(pred[:, :-1], targets[idx, :-1]) + config.gripper_weight * (w * bce).sum() / w.sum()
+            loss = flight_mse(pred[:, :-1], targets[idx, :-1], None if flight_weight is None else flight_weight[idx]) \
+                + config.gripper_weight * (w * bce).sum() / w.sum()
         else:
-            loss = F.mse_loss(pred, targets[idx])
+            loss = flight_mse(pred, targets[idx], None if flight_weight is None else flight_weight[idx])
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()

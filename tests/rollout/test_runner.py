@@ -115,3 +115,30 @@ def test_a_folder_with_another_dataset_is_refused_untouched(tmp_path):
                               "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120, env=ENV)
     assert r.returncode == 2 and r.stderr.strip() == "aerobench generate: error: --shard must be i/k with 0 <= i < k, got 3/2"
     assert not (tmp_path / "x").exists()
+
+
+def test_a_chain_dataset_labels_each_frame_with_its_stages_skill(tmp_path):
+    """`annotation.skill` holds the global skill index (meta/aerobench.json's list) of the stage acting on each frame:
+    checked against the task state's skill one-hot, which the env computes on its own. (Chains once exported the
+    global index mapped a second time: their nav frames read "place" and their place frames "nav".)"""
+    import pandas as pd
+
+    from aerobench.envs.tasks import SKILLS
+    from aerobench.export import DatasetSink
+    from aerobench.rollout.runner import RolloutRunner
+    from aerobench.train.common import torch_threads
+
+    out = tmp_path / "chain"
+    spec = RolloutSpec(setting="PackageDelivery", skills=("deliver",), episodes=1, policy="expert",
+                       record_cameras=False, max_steps=260, seed=9)
+    sink = DatasetSink(out, {**spec.as_dict(), "keep": "all"})
+    with torch_threads(1):
+        RolloutRunner(spec, sink).run()
+    sink.close()
+    frames = pd.concat(pd.read_parquet(f) for f in sorted((out / "data").rglob("*.parquet")))
+    skill = frames["annotation.skill"].map(lambda v: int(v[0]) if hasattr(v, "__len__") else int(v))
+    stage = frames["annotation.stage"].map(lambda v: int(v[0]) if hasattr(v, "__len__") else int(v))
+    one_hot = frames["observation.environment_state"].map(lambda v: int(v[: len(SKILLS)].argmax()))
+    assert set(stage) == {0, 1}, "the expert must reach the transport within the step cap for this test to bite"
+    assert (skill == one_hot).all()
+    assert skill[stage == 0].eq(SKILLS.index("pick")).all() and skill[stage == 1].eq(SKILLS.index("nav")).all()

@@ -10,12 +10,23 @@ from pathlib import Path
 
 import pytest
 import torch
+from torch.nn import functional as F
 
 from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.export import DatasetSink, read_jsonl
+from aerobench.policies.inputs import InputSpec
 from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
-from aerobench.train.bc import BCConfig, select_episodes, train_bc, within_budget
+from aerobench.train.bc import (
+    BCConfig,
+    flight_mse,
+    gripper_targets,
+    phase_onset_weights,
+    select_episodes,
+    stage_segments,
+    train_bc,
+    within_budget,
+)
 from aerobench.train.common import read_scalars, torch_threads
 
 BIN = Path(sys.executable).parent
@@ -217,6 +228,50 @@ def test_bc_trains_on_the_chosen_object_classes(state_dataset, tmp_path):
     assert json.loads((run / "config.json").read_text())["data"]["objects"] == ["master_chef_can"]
     with pytest.raises(ValueError, match="--objects needs at least one object class"):
         BCConfig(dataset=str(state_dataset), out=str(tmp_path), objects=())
+
+
+def test_input_history_and_gripper_onsets_never_cross_a_chain_stage():
+    # a chained evaluation resets a stage's policy when the stage begins; training must see the same inputs
+    episode, stage = torch.tensor([0, 0, 0, 0, 1, 1]), torch.tensor([0, 0, 1, 1, 0, 0])
+    segment = stage_segments(episode, stage)
+    assert segment.tolist() == [1, 1, 2, 2, 3, 3]
+    assert stage_segments(episode, None).tolist() == [1, 1, 1, 1, 2, 2]  # no stage column: whole episodes
+    history = InputSpec(state_fields=(), task_fields=("skill",), history=2)
+    stacked = history.stack_episodes(torch.arange(6.0)[:, None], segment)
+    assert stacked.tolist() == [[0, 0], [1, 0], [2, 2], [3, 2], [4, 4], [5, 4]]  # each stage's first frame repeated
+    gripper = torch.tensor([-1.0, 1.0, -1.0, -1.0, 1.0, 1.0])[:, None]  # close in stage 0; open across the boundary
+    close, weight = gripper_targets(gripper, segment, onset_weight=10.0)
+    assert weight.tolist() == [1, 10, 1, 1, 1, 1]
+
+
+def test_the_frames_after_an_expert_phase_switch_are_weighted_up():
+    phase = torch.tensor([1, 1, 1, 2, 2, 2, 2, 0, 0])  # align -> descend at frame 3; a new segment at frame 7
+    segment = torch.tensor([1, 1, 1, 1, 1, 1, 1, 2, 2])
+    weight = phase_onset_weights(phase, segment, frames=2, weight=20.0)
+    assert weight.tolist() == [1, 1, 1, 20, 20, 1, 1, 1, 1]  # a segment's first frame is no switch
+    pred, target = torch.tensor([[1.0, 1.0], [0.0, 0.0]]), torch.zeros(2, 2)
+    assert flight_mse(pred, target, None) == F.mse_loss(pred, target)
+    assert flight_mse(pred, target, torch.tensor([3.0, 1.0])) == pytest.approx(0.75)  # (3 * 1 + 1 * 0) / 4
+
+
+def test_bc_trains_on_the_chosen_skill_stages(state_dataset, tmp_path):
+    both = ("S", "T")
+    every = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "all"), steps=1, hidden=(8,),
+                              progress=False, outcomes=both))
+    picks = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "pick"), steps=1, hidden=(8,),
+                              progress=False, outcomes=both, skills=("pick",)))
+    every, picks = (json.loads((run / "config.json").read_text())["data"] for run in (every, picks))
+    assert picks["skills"] == ["pick"] and picks["frames"] == every["frames"] > 0 and "skills" not in every
+    with pytest.raises(ValueError, match="have no frame of place; choose skills the dataset acts"):
+        train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "place"), steps=1, progress=False,
+                          outcomes=both, skills=("place",)))
+    with pytest.raises(ValueError, match="--skills must name skills of pick, place, nav, open, close, got fly"):
+        BCConfig(dataset=str(state_dataset), out=str(tmp_path), skills=("fly",))
+    weighted = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "phase"), steps=2, hidden=(8,),
+                                 progress=False, outcomes=both, phase_onset_weight=20.0))
+    assert json.loads((weighted / "config.json").read_text())["train"]["phase_onset_weight"] == 20.0
+    with pytest.raises(ValueError, match="--phase-onset-weight must be at least 1"):
+        BCConfig(dataset=str(state_dataset), out=str(tmp_path), phase_onset_weight=0.5)
 
 
 def test_bc_errors_are_one_line(state_dataset, tmp_path):
