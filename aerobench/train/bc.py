@@ -201,9 +201,12 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
             raise ValueError(f"{root} has no {TASK_STATE_KEY} to tell the stages apart (exported by an older "
                              f"aerobench); re-export it, or leave out --skills")
         columns.append(TASK_STATE_KEY)
-    columns += [key for key in (STAGE_KEY, PHASE_KEY) if key in ds.features]
-    if config.phase_onset_weight != 1 and PHASE_KEY not in columns:
-        raise ValueError(f"{root} has no {PHASE_KEY} (exported by an older aerobench); leave out --phase-onset-weight")
+    columns += [STAGE_KEY] if STAGE_KEY in ds.features else []
+    if config.phase_onset_weight != 1:
+        if PHASE_KEY not in ds.features:
+            raise ValueError(f"{root} has no {PHASE_KEY} (exported by an older aerobench); leave out "
+                             f"--phase-onset-weight")
+        columns.append(PHASE_KEY)
     table = ds.hf_dataset.select_columns(columns).with_format("torch")[:]
     if config.max_transitions is not None:
         episodes = within_budget(episodes, table["episode_index"], config.max_transitions)
@@ -260,24 +263,28 @@ def demo_starts(config: BCConfig) -> TrainingStarts:
     return dataset_starts(Path(config.dataset), source=config.dataset)
 
 
+def switches(values: torch.Tensor, segment: torch.Tensor) -> torch.Tensor:
+    """True on the frames whose value differs from the frame before it in the same segment (an episode's stage)."""
+    switch = torch.zeros(len(values), dtype=torch.bool)
+    switch[1:] = (values[1:] != values[:-1]) & (segment[1:] == segment[:-1])
+    return switch
+
+
 def gripper_targets(action: torch.Tensor, segment: torch.Tensor, onset_weight: float) -> tuple[torch.Tensor, torch.Tensor]:
     """The close label (1: close) of every frame and its weight: `onset_weight` on the frames where the command
     switches within a segment (an episode's stage), 1 elsewhere."""
     close = is_close(action[:, -1])
-    onset = torch.zeros_like(close, dtype=torch.bool)
-    onset[1:] = (close[1:] != close[:-1]) & (segment[1:] == segment[:-1])
-    return close, torch.where(onset, torch.full_like(close, onset_weight), torch.ones_like(close))
+    return close, torch.where(switches(close, segment), torch.full_like(close, onset_weight), torch.ones_like(close))
 
 
 def phase_onset_weights(phase: torch.Tensor, segment: torch.Tensor, frames: int, weight: float) -> torch.Tensor:
     """`weight` on the `frames` frames from each switch of the expert's phase within a segment, 1 elsewhere: the
     frames where the expert decides (align -> descend), a few among many of near-identical inputs it holds on."""
-    switch = torch.zeros(len(phase), dtype=torch.bool)
-    switch[1:] = (phase[1:] != phase[:-1]) & (segment[1:] == segment[:-1])
+    switch = switches(phase, segment)
     recent = switch.clone()
     for k in range(1, frames):
         recent[k:] |= switch[:-k] & (segment[k:] == segment[:-k])
-    return torch.where(recent, torch.full_like(phase, weight, dtype=torch.float), torch.ones(len(phase)))
+    return torch.where(recent, torch.full((len(phase),), weight), torch.ones(len(phase)))
 
 
 def flight_mse(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
