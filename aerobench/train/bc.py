@@ -359,13 +359,13 @@ def _train_bc(config: BCConfig) -> Path:
         idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
         batch = {"state": states[idx], **{cam: data[cam][idx].float() for cam in cameras}}
         pred = actor(batch)
+        frame_weight = None if flight_weight is None else flight_weight[idx]
         if binary:  # MSE on the continuous dimensions, weighted cross-entropy on close
             w = close_weight[idx]
             bce = F.binary_cross_entropy_with_logits(pred[:, -1], close[idx], reduction="none")
-            loss = flight_mse(pred[:, :-1], targets[idx, :-1], None if flight_weight is None else flight_weight[idx]) \
-                + config.gripper_weight * (w * bce).sum() / w.sum()
+            loss = flight_mse(pred[:, :-1], targets[idx, :-1], frame_weight) + config.gripper_weight * (w * bce).sum() / w.sum()
         else:
-            loss = flight_mse(pred, targets[idx], None if flight_weight is None else flight_weight[idx])
+            loss = flight_mse(pred, targets[idx], frame_weight)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
