@@ -15,6 +15,10 @@ from .motion import POSITION_GAIN, YAW_GAIN, flight_action, velocity_towards, wr
 
 ARM_YAW_GAIN = 0.6  # 1/s
 ARM_MAX_YAW_RATE = 0.4  # rad/s
+ARM_DROOP_RAD = 0.15  # an elbow further below its target than this holds the arm elsewhere than commanded
+# A held elbow's gravity moment falls with the cosine of the forearm's droop: 0.2 rad below the torque-limited droop
+# of a 0.37 kg can (0.6 rad) asks about 85% of the limit.
+ARM_DROOP_MARGIN_RAD = 0.2
 
 
 class SkillExpert:
@@ -68,6 +72,19 @@ class SkillExpert:
         if pick is None:
             return self.arm_rest.expand(self.n, 3)
         return torch.where(self.reaches_in(pick)[:, None], self.arm_carry, self.arm_top_down)
+
+    def hanging_arm_pose(self, commanded: torch.Tensor) -> torch.Tensor:
+        """`(N, 3)` the arm pose to hold a load in: `commanded`, except where the load has drooped the elbow more
+        than `ARM_DROOP_RAD` below it (a heavy object on a level forearm needs more than the elbow's 0.9 N m). There
+        the servo sits at its torque limit, with no torque left for damping, and the arm and the object swing with the
+        airframe; so the elbow is commanded `ARM_DROOP_MARGIN_RAD` below where it hangs, inside the limit."""
+        q = self.env.agent.arm_qpos()
+        error = q - commanded
+        # positive pitch turns the forearm down; the shoulder and the wrist hold (an arm still on its way is not drooped)
+        drooped = (error[:, 1] > ARM_DROOP_RAD) & (error[:, [0, 2]].abs() < ARM_DROOP_RAD).all(-1)
+        held = commanded.clone()
+        held[:, 1] = q[:, 1] + ARM_DROOP_MARGIN_RAD
+        return torch.where(drooped[:, None], held, commanded)
 
     def act(self) -> torch.Tensor:
         raise NotImplementedError

@@ -31,6 +31,11 @@ BACK_OUT_M = 0.45
 # itself must keep the footprint clear of the scene.
 ROOM_AXES = [0.0, math.pi / 2, math.pi, -math.pi / 2]
 ARM_FOLDED_RAD = 0.15  # every arm joint this close to the carry pose: folded
+# A heavy object at the end of a level forearm needs more than the elbow's 0.9 N m (spec arm table): with the
+# arm's fingers and palm, a 0.37 kg can held from the side asks about 1.2 N m, so the forearm droops until the moment
+# is within the limit (0.6 rad in the carry pose) and never reaches the carry pose. An elbow that has come to rest
+# below its target counts as folded; the route is then planned again for where the arm really hangs.
+ARM_AT_REST_RADPS = 0.05
 # A chain's transport ends 0.5 m above the place's anchor whatever hangs from the gripper: a tall box (the sugar box,
 # 13.5 cm under the arm's grasp point) can stand on the counter's edge there, leaving no clear descent to the goal and
 # no route at all (the expert then flew straight into a wall). Where the goal is blocked the route ends a little
@@ -63,6 +68,8 @@ class NavExpert(SkillExpert):
         # the arm platform flies with its arm folded (`ArmSpec.carry_pose_rad`; after a top-down pick, in the top-down
         # pose it holds the object in); it folds where the route starts
         self.carry_pose = self.arm_carry.expand(self.n, 3).clone() if self.has_arm else None
+        self.hang_pose = None if self.carry_pose is None else self.carry_pose.clone()  # the planner's arm pose
+        self.folded = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # latched once the arm has folded
 
     def reset(self, env_idx):
         super().reset(env_idx)
@@ -74,6 +81,9 @@ class NavExpert(SkillExpert):
         yaw = state.yaw
         if self.has_arm and self.after_pick is not None:
             self.carry_pose[env_idx] = self.carry_arm_pose(self.after_pick)[env_idx]
+        if self.has_arm:
+            self.hang_pose[env_idx] = self.carry_pose[env_idx]
+        self.folded[env_idx] = False
         back = BACK_OUT_M * torch.stack([torch.cos(yaw), torch.sin(yaw), torch.zeros_like(yaw)], -1)
         for i in env_idx.tolist():
             goal = self.evaluator.target[i].cpu().numpy()
@@ -99,7 +109,7 @@ class NavExpert(SkillExpert):
         )
 
     def _planner(self, i: int, heading: float):
-        arm_q = None if self.carry_pose is None else self.carry_pose[i]
+        arm_q = None if self.hang_pose is None else self.hang_pose[i]
         return planner_for(self.env, i, float(self.depth[i]), heading=heading, arm_q=arm_q)
 
     def act(self):
@@ -119,7 +129,41 @@ class NavExpert(SkillExpert):
         arm = None
         if self.has_arm:  # folded once backed out (a hover, so the swing of the held object is over before flying)
             arm = torch.where(backing[:, None], self.arm_rest.expand(self.n, 3), self.carry_pose)
-            folded = (self.env.agent.arm_qpos() - self.carry_pose).abs().max(-1).values < ARM_FOLDED_RAD
-            target = torch.where((~backing & ~folded)[:, None], self.turn_at, target)
+            newly = ~backing & ~self.folded & self._arm_folded()
+            self.folded |= newly
+            if newly.any():
+                self._replan_drooped(newly.nonzero()[:, 0].tolist())
+                target, _ = self.route.target(state.position)
+            target = torch.where((~backing & ~self.folded)[:, None], self.turn_at, target)
+            turning = ~backing & ~self.turned
+            target = torch.where(turning[:, None], self.turn_at, target)
+            yaw = torch.where(backing, self.start_yaw, self.heading)
         return self.action(target, speed, yaw, gripper, tracked=state.position, arm_target=arm,
                            max_accel=CARRY_ACCEL_MPS2 if self.carrying_depth > 0 else None)
+
+    def _arm_folded(self) -> torch.Tensor:
+        """`(N,)` the arm is in its carry pose, or as near it as its servos hold the load (`ARM_AT_REST_RADPS`)."""
+        error = self.env.agent.arm_qpos() - self.carry_pose
+        near = error.abs() < ARM_FOLDED_RAD
+        drooped = (error[:, 1] > 0) & (self.env.agent.arm_qvel().abs().max(-1).values < ARM_AT_REST_RADPS)
+        return near[:, 0] & near[:, 2] & (near[:, 1] | drooped)  # positive pitch turns the forearm down
+
+    def _replan_drooped(self, rows: list[int]) -> None:
+        """For envs whose arm hangs below the carry pose: hold it where it can (`hanging_arm_pose`) and plan the route
+        again from here (the held object lower and nearer than the planner assumed at reset)."""
+        hang_pose = self.hanging_arm_pose(self.carry_pose)
+        rows = [i for i in rows if not torch.equal(hang_pose[i], self.carry_pose[i])]
+        if not rows:
+            return
+        state = self.state()
+        depth = self.held_depth(torch.tensor(rows, device=self.device))
+        for k, i in enumerate(rows):
+            self.carry_pose[i] = self.hang_pose[i] = hang_pose[i]
+            self.depth[i] = depth[k]
+            start, goal = state.position[i].cpu().numpy(), self.evaluator.target[i].cpu().numpy()
+            heading, route = self._plan(i, start, goal, float(self.heading[i]))
+            if route is None:  # nothing better than the reset's plan
+                continue
+            self.turned[i] = bool(self.turned[i]) and heading == float(self.heading[i])
+            self.heading[i], self.turn_at[i], self.backing[i] = heading, state.position[i], False
+            self.route.set(i, route)

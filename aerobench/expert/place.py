@@ -39,6 +39,8 @@ OPEN_STEPS = 12
 HOLD_SPEED_MPS = 0.05  # while the fingers open: enough to pull a few mm of drift back, too slow to shove the object
 RETREAT_HEIGHT_M = 0.40  # above the release point: beyond the 0.27 m clearance with margin
 RETREAT_SPEED_MPS = 0.2
+SIDE_BACK_OFF_M = 0.12  # after a side grasp the open hand backs off this far before it rises
+SIDE_EASE_BACK_M = 0.02  # ... and eases back this far while the fingers open
 
 
 class PlacePhase(IntEnum):
@@ -64,6 +66,11 @@ class PlaceExpert(SkillExpert):
         # The arm platform places in the pose it carried the object in (`carry_arm_pose`): unfolding to the working
         # pose over a drawer swept the forearm into it.
         self.arm_pose = self.arm_rest.expand(self.n, 3).clone() if self.has_arm else None
+        # ... or, where a heavy object droops the forearm (`hanging_arm_pose`), as it hangs until the support carries
+        # the object, then in the pose of the pick again (levelling it onto its base)
+        self.level_pose = None if self.arm_pose is None else self.arm_pose.clone()
+        self.levelling = torch.zeros(self.n, dtype=torch.bool, device=self.device)
+        self.backed_off = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # the side grasp's hand is clear
 
     def above_goal_tcp(self) -> torch.Tensor:
         """Tool-centre-point target of the transport: the held object's bottom over the goal, with clearance."""
@@ -73,10 +80,13 @@ class PlaceExpert(SkillExpert):
     def reset(self, env_idx):
         super().reset(env_idx)
         self.stall_steps[env_idx] = 0
+        self.levelling[env_idx] = False
+        self.backed_off[env_idx] = False
         state = self.state()
         self.heading[env_idx] = state.yaw[env_idx]
         if self.has_arm:
-            self.arm_pose[env_idx] = self.carry_arm_pose(self.pick)[env_idx]
+            self.level_pose[env_idx] = self.carry_arm_pose(self.pick)[env_idx]
+            self.arm_pose[env_idx] = self.hanging_arm_pose(self.level_pose)[env_idx]
         airframe_goal = self.above_goal_tcp() + (state.position - self.tcp())
         depth = dict(zip(env_idx.tolist(), self.held_depth(env_idx).tolist()))
         for i in env_idx.tolist():
@@ -132,8 +142,20 @@ class PlaceExpert(SkillExpert):
         target = torch.where(holding[:, None], self.stop_point, target)
         # Open fingers clear a wide object by a few mm a side (a 102 mm can in the 110 mm jaws): from the release on,
         # hold the release point (a position hold that pulls a drift back) until the retreat lifts straight up.
-        target = torch.where((phase == P.OPEN)[:, None], self.release_point, target)
+        opening = self.release_point
         retreat = self.release_point + torch.tensor([0.0, 0.0, RETREAT_HEIGHT_M], device=self.device)
+        if self.pick is not None and self.has_arm:
+            # A side grasp (after a reach-in) has the palm a centimetre off the object's side: rising straight up dragged
+            # it over the object, and the airframe's settling as the fingers let go pushed it into a can (collisions
+            # after the release). The hand eases back while the fingers open and backs off along the forearm first.
+            forward = torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
+            back_off = self.release_point - SIDE_BACK_OFF_M * forward
+            self.backed_off |= (phase >= P.RETREAT) & (torch.linalg.norm((tcp - back_off)[:, :2], dim=-1) < 0.02)
+            side = self.reaches_in(self.pick)
+            backed = torch.where(self.backed_off[:, None], retreat - SIDE_BACK_OFF_M * forward, back_off)
+            retreat = torch.where(side[:, None], backed, retreat)
+            opening = torch.where(side[:, None], self.release_point - SIDE_EASE_BACK_M * forward, opening)
+        target = torch.where((phase == P.OPEN)[:, None], opening, target)
         target = torch.where((phase == P.RETREAT)[:, None] | (phase == P.HOVER)[:, None], retreat, target)
         near = (obj[:, 2] - goal[:, 2]) < TOUCH_ZONE_M
         max_speed = torch.full((self.n,), TRANSPORT_SPEED_MPS, device=self.device)
@@ -152,9 +174,16 @@ class PlaceExpert(SkillExpert):
         # drawer's floor off its goal (too fast for the stall release); there the press holds the goal's xy.
         hold_xy = (POSITION_GAIN * (contact - tcp)[:, :2]).clamp(-HOLD_SPEED_MPS, HOLD_SPEED_MPS)
         press_velocity = torch.cat([hold_xy, torch.full_like(hold_xy[:, :1], -PRESS_SPEED_MPS)], -1)
-        pressing = on_surface & self.has_arm
+        if self.has_arm:  # level once the support carries part of the object (a drooped can touches with its rim) ...
+            drooped = (self.arm_pose != self.level_pose).any(-1)
+            self.levelling |= drooped & (phase == P.DESCEND) & self.env.current_step_context().is_supported
+        # ... and sink as on the surface meanwhile: the forearm levels only as fast as the drone lowers the grasp point
+        pressing = (on_surface | (self.levelling & (phase == P.DESCEND))) & self.has_arm
+        arm = None
+        if self.has_arm:
+            arm = torch.where((self.levelling | on_surface | (phase >= P.STOP))[:, None], self.level_pose, self.arm_pose)
         return self.action(
-            target, max_speed, self.heading, gripper, arm_target=self.arm_pose, velocity_override=(pressing, press_velocity)
+            target, max_speed, self.heading, gripper, arm_target=arm, velocity_override=(pressing, press_velocity)
         )
 
 

@@ -110,3 +110,79 @@ def test_the_transport_plans_for_where_the_top_down_grasp_holds_a_tall_box():
     place.reset(ENV0)
     assert math.isclose(float(nav.depth[0]), float(raised[2]), abs_tol=1e-3)
     env.close()
+
+
+class _ArmAt:
+    """The slice of an env `SkillExpert` reads for the arm: one arm-platform env whose arm is at `q`."""
+
+    def __init__(self, q):
+        self.num_envs, self.device, self.platform = 1, torch.device("cpu"), PLATFORMS["arm"]
+        self.agent = type("Agent", (), {"arm_qpos": lambda _self: torch.tensor([q])})()
+
+
+def test_a_heavy_can_on_a_level_forearm_exceeds_the_elbow_and_is_held_where_it_hangs():
+    from aerobench.expert.base import ARM_DROOP_MARGIN_RAD, SkillExpert
+
+    arm = PLATFORMS["arm"].arm
+    elbow_limit = arm.joints[1].torque_limit_nm
+    # the carry pose keeps the forearm level: a 0.37 kg can at the grasp point asks more than the elbow has ...
+    assert _gravity_torques(arm.carry_pose_rad, OBJECTS["tomato_soup_can"].mass_kg)[1] > elbow_limit
+    # ... and a drooping forearm asks less (the moment arm shrinks with the cosine of the droop)
+    drooped = (arm.carry_pose_rad[0], arm.carry_pose_rad[1] + 0.8, 0.0)
+    assert _gravity_torques(drooped, OBJECTS["tomato_soup_can"].mass_kg)[1] < elbow_limit
+    carry = torch.tensor([arm.carry_pose_rad])
+    # an elbow hanging 0.6 rad below the carry pose is commanded a margin below where it hangs, inside the limit
+    hanging = SkillExpert(_ArmAt((1.57, -0.97, 0.0)), None).hanging_arm_pose(carry)
+    assert torch.allclose(hanging, torch.tensor([[1.57, -0.97 + ARM_DROOP_MARGIN_RAD, 0.0]]))
+    # an arm that holds its pose (a light object) keeps the command
+    assert torch.equal(SkillExpert(_ArmAt((1.55, -1.50, 0.02)), None).hanging_arm_pose(carry), carry)
+
+
+def test_the_fridge_chain_carries_a_heavy_can_with_the_forearm_drooped_and_levels_it_onto_the_table():
+    # seed 20's tomato soup can (LongHorizonRearrangement plan index 3): lifted off the fridge shelf, the forearm
+    # droops 0.6-0.7 rad under the 0.37 kg can; the transport used to wait for a carry pose the elbow cannot reach
+    # (a no-progress truncation). Now it flies with the arm where it hangs and the place levels the can on the table.
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement", chain="open_pick_nav_place")
+    base = env.unwrapped
+    env.reset(seed=20 * 1_000_003 + 3, options={"reconfigure": True, "objects": ["tomato_soup_can"]})
+    expert = ExpertController(base)
+    expert.reset(ENV0)
+    carry = torch.tensor(base.platform.arm.carry_pose_rad)
+    drooped_in_transport = False
+    for _ in range(2400):
+        _, _, terminated, truncated, info = env.step(expert.act())
+        if int(expert.stage[0]) == 2:
+            drooped_in_transport |= float(base.agent.arm_qpos()[0, 1] - carry[1]) > 0.3
+        if bool(terminated[0] or truncated[0]):
+            break
+    assert drooped_in_transport
+    assert bool(info["success"][0]), {k: float(v[0]) for k, v in info.items() if k.startswith(("fail", "subtask"))}
+    assert float(info["is_object_upright"][0]) == 1.0
+    env.close()
+
+
+def test_a_reach_in_grasp_keeps_the_palm_off_the_near_face_of_a_deep_box():
+    # the cracker box is 15.8 cm deep along the approach; the arm's palm stands 6 cm behind the grasp point, so a grasp
+    # at the box's centre put the palm 2 cm into it (a collision at every insertion); the grasp point is drawn back
+    from aerobench.envs.skills.pick import TOP_DOWN_PALM_MARGIN_M
+
+    env, base, pick, nav, place = _chain_experts("open_pick_nav_place", 20 * 1_000_003 + 1, "cracker_box")
+    evaluator = base.evaluators[1]
+    assert bool(evaluator.enclosed[0])
+    evaluator.begin(ENV0)
+    ctx = base.current_step_context()
+    heading = float(evaluator.heading[0])
+    forward = torch.tensor([math.cos(heading), math.sin(heading), 0.0])
+    grasp = evaluator.grasp_target(ctx.tcp)[0]
+    centre = base.target.pose.p[0] + torch.tensor([0.0, 0.0, float(base.target_grasp_point[0, 2])])
+    depth = float(base.target_half_extent[0, 1])  # along the approach (the fingers close across the box's x)
+    assert depth > base.platform.arm.palm_to_grasp_m  # deeper than the palm reaches
+    palm_gap = float((centre - grasp) @ forward) - depth + base.platform.arm.palm_to_grasp_m
+    assert math.isclose(palm_gap, TOP_DOWN_PALM_MARGIN_M, abs_tol=2e-3), palm_gap
+    # a shallow box is still grasped at its centre
+    env.reset(seed=20 * 1_000_003 + 2, options={"reconfigure": True, "objects": ["sugar_box"]})
+    evaluator.begin(ENV0)
+    grasp = evaluator.grasp_target(base.current_step_context().tcp)[0]
+    centre = base.target.pose.p[0] + torch.tensor([0.0, 0.0, float(base.target_grasp_point[0, 2])])
+    assert float(torch.linalg.norm((grasp - centre)[:2])) < 1e-3
+    env.close()

@@ -278,8 +278,14 @@ class AerialAgent(BaseAgent):
 
     def arm_qpos(self) -> torch.Tensor:
         """Arm joint positions `(N, 3)` (shoulder, elbow, wrist); empty `(N, 0)` on the gripper platform."""
-        idx = [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
-        return self.robot.get_qpos()[:, idx]
+        return self.robot.get_qpos()[:, self._arm_indices()]
+
+    def arm_qvel(self) -> torch.Tensor:
+        """Arm joint velocities `(N, 3)` (rad/s); empty `(N, 0)` on the gripper platform."""
+        return self.robot.get_qvel()[:, self._arm_indices()]
+
+    def _arm_indices(self) -> list[int]:
+        return [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
 
     def hover_qpos(self, position: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
         """Full qpos for a level airframe at `position` `(N, 3)` with heading `yaw` `(N,)`, working arm pose, open gripper."""
