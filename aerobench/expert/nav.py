@@ -68,7 +68,6 @@ class NavExpert(SkillExpert):
         # the arm platform flies with its arm folded (`ArmSpec.carry_pose_rad`; after a top-down pick, in the top-down
         # pose it holds the object in); it folds where the route starts
         self.carry_pose = self.arm_carry.expand(self.n, 3).clone() if self.has_arm else None
-        self.hang_pose = None if self.carry_pose is None else self.carry_pose.clone()  # the planner's arm pose
         self.folded = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # latched once the arm has folded
 
     def reset(self, env_idx):
@@ -81,8 +80,6 @@ class NavExpert(SkillExpert):
         yaw = state.yaw
         if self.has_arm and self.after_pick is not None:
             self.carry_pose[env_idx] = self.carry_arm_pose(self.after_pick)[env_idx]
-        if self.has_arm:
-            self.hang_pose[env_idx] = self.carry_pose[env_idx]
         self.folded[env_idx] = False
         back = BACK_OUT_M * torch.stack([torch.cos(yaw), torch.sin(yaw), torch.zeros_like(yaw)], -1)
         for i in env_idx.tolist():
@@ -109,7 +106,7 @@ class NavExpert(SkillExpert):
         )
 
     def _planner(self, i: int, heading: float):
-        arm_q = None if self.hang_pose is None else self.hang_pose[i]
+        arm_q = None if self.carry_pose is None else self.carry_pose[i]
         return planner_for(self.env, i, float(self.depth[i]), heading=heading, arm_q=arm_q)
 
     def act(self):
@@ -158,7 +155,7 @@ class NavExpert(SkillExpert):
         state = self.state()
         depth = self.held_depth(torch.tensor(rows, device=self.device))
         for k, i in enumerate(rows):
-            self.carry_pose[i] = self.hang_pose[i] = hang_pose[i]
+            self.carry_pose[i] = hang_pose[i]  # commanded, and the planner's arm pose
             self.depth[i] = depth[k]
             start, goal = state.position[i].cpu().numpy(), self.evaluator.target[i].cpu().numpy()
             heading, route = self._plan(i, start, goal, float(self.heading[i]))
