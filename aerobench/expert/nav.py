@@ -128,13 +128,12 @@ class NavExpert(SkillExpert):
             arm = torch.where(backing[:, None], self.arm_rest.expand(self.n, 3), self.carry_pose)
             newly = ~backing & ~self.folded & self._arm_folded()
             self.folded |= newly
-            if newly.any():
+            if newly.any():  # a re-planned route may start with another heading: targets as above, on the new route
                 self._replan_drooped(newly.nonzero()[:, 0].tolist())
                 target, _ = self.route.target(state.position)
+                target = torch.where((~backing & ~self.turned)[:, None], self.turn_at, target)
+                yaw = torch.where(backing, self.start_yaw, self.heading)
             target = torch.where((~backing & ~self.folded)[:, None], self.turn_at, target)
-            turning = ~backing & ~self.turned
-            target = torch.where(turning[:, None], self.turn_at, target)
-            yaw = torch.where(backing, self.start_yaw, self.heading)
         return self.action(target, speed, yaw, gripper, tracked=state.position, arm_target=arm,
                            max_accel=CARRY_ACCEL_MPS2 if self.carrying_depth > 0 else None)
 
