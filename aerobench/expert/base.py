@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import torch
 
+from ..envs.control.arm import ELBOW, ArmParams, elbow_gravity_torque
 from ..envs.control.virtual_joints import AirframeState
 from ..envs.platforms import CONTROL_HZ, MAX_YAW_RATE_RPS
 from .motion import POSITION_GAIN, YAW_GAIN, flight_action, velocity_towards, wrap_angle, yaw_rate_towards
@@ -38,6 +39,7 @@ class SkillExpert:
         self.arm_rest = torch.tensor(rest, dtype=torch.float32, device=self.device)
         self.arm_top_down = torch.tensor(arm.top_down_pose_rad if self.has_arm else (), dtype=torch.float32, device=self.device)
         self.arm_carry = torch.tensor(arm.carry_pose_rad if self.has_arm else (), dtype=torch.float32, device=self.device)
+        self.arm_params = ArmParams.from_spec(arm, env.platform.gripper, self.device) if self.has_arm else None
         # The arm platform's yaw torque is limited to 0.12 N m, so its heading lags the commanded yaw rate: a gentler
         # heading loop keeps it from ringing (the gripper platform turns fast enough for the default).
         self.yaw_gain, self.max_yaw_rate = (ARM_YAW_GAIN, ARM_MAX_YAW_RATE) if self.has_arm else (YAW_GAIN, MAX_YAW_RATE_RPS)
@@ -72,6 +74,15 @@ class SkillExpert:
         if pick is None:
             return self.arm_rest.expand(self.n, 3)
         return torch.where(self.reaches_in(pick)[:, None], self.arm_carry, self.arm_top_down)
+
+    def forearm_droops(self, pick) -> torch.Tensor:
+        """`(N,)` envs where the object `pick` grasps is too heavy for the forearm in the pose it is picked in: the
+        elbow's static torque with the object at the grasp point exceeds its limit (a reach-in's level forearm holds
+        0.28 kg; the 0.37-0.41 kg cans droop it 0.6-0.9 rad as they come off the shelf)."""
+        if not self.has_arm:
+            return torch.zeros(self.n, dtype=torch.bool, device=self.device)
+        torque = elbow_gravity_torque(self.pick_arm_pose(pick), self.arm_params, self.env.target_mass)
+        return torque > self.arm_params.torque_limit[ELBOW]
 
     def hanging_arm_pose(self, commanded: torch.Tensor) -> torch.Tensor:
         """`(N, 3)` the arm pose to hold a load in: `commanded`, except where the load has drooped the elbow more

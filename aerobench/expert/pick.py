@@ -21,6 +21,7 @@ import torch
 from ..envs.control.arm import arm_point_positions_body
 from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
+from ..envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M
 from .base import SkillExpert
 from .motion import TURN_TOLERANCE_RAD, wrap_angle
 from .planner import planner_for, route_at_some_heading
@@ -49,6 +50,9 @@ ENTER_ABOVE_M = 0.02
 ENTER_ABOVE_RIM_M = 0.03
 OVER_GRASP_M = 0.01
 ENCLOSED_LIFT_BACK_M = 0.06
+# ... except that an object which droops the forearm (`SkillExpert.forearm_droops`) is dragged back towards the
+# drone as the forearm droops: its centre is drawn no nearer than this to the shelf board's front edge.
+DROOP_EDGE_KEEP_M = 0.02
 ENCLOSED_OVERREACH_M = 0.01  # ... and never deeper than the grasp planned at the start (a pushed object is let go)
 BACK_OFF_M = 0.45  # a pick after another stage first backs this far away, keeping its heading, then turns
 STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point along the grasp heading, the arm
@@ -87,6 +91,7 @@ class PickExpert(SkillExpert):
         self.lift_from = torch.zeros(self.n, 3, device=self.device)
         self.retries = torch.zeros(self.n, dtype=torch.long, device=self.device)
         self.drawn = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # enclosed: drawn to the front
+        self.draw_back = torch.full((self.n,), ENCLOSED_LIFT_BACK_M, device=self.device)  # ... this far (m)
         self.deepest = torch.zeros(self.n, device=self.device)  # enclosed: along the heading, the deepest target
 
     def reset(self, env_idx):
@@ -157,6 +162,19 @@ class PickExpert(SkillExpert):
         side = grasp - SIDE_STANDOFF_M * self._forward() + up
         return torch.where(self.reaches_in(self.evaluator)[:, None], side, above)
 
+    def _draw_back(self) -> torch.Tensor:
+        """`(N,)` how far a reach-in draws the object towards the front before lifting it: `ENCLOSED_LIFT_BACK_M`, and
+        for an object that droops the forearm no nearer than `DROOP_EDGE_KEEP_M` to the shelf board's front edge
+        (the support's sampling area stops `SUPPORT_EDGE_MARGIN_M` inside the board)."""
+        support = self.env.supports[torch.arange(self.n, device=self.device), self.evaluator.support_index]
+        relative = self.heading - support[:, 5]
+        depth = (support[:, 2] * torch.cos(relative)).abs() + (support[:, 3] * torch.sin(relative)).abs()
+        centre = support[:, 0] * torch.cos(self.heading) + support[:, 1] * torch.sin(self.heading)
+        edge = centre - depth - SUPPORT_EDGE_MARGIN_M
+        room = (self._along(self.object_position()) - edge - DROOP_EDGE_KEEP_M).clamp(0.0, ENCLOSED_LIFT_BACK_M)
+        full = torch.full_like(room, ENCLOSED_LIFT_BACK_M)
+        return torch.where(self.forearm_droops(self.evaluator), room, full)
+
     def act(self) -> torch.Tensor:
         P = PickPhase
         info = self.env.evaluate()
@@ -182,6 +200,7 @@ class PickExpert(SkillExpert):
         confirmed = grasped & (self.timer >= GRASP_CONFIRM_STEPS)
         started_lift = self.goto(P.CLOSE, confirmed, P.LIFT)
         self.lift_from = torch.where(started_lift[:, None], tcp, self.lift_from)
+        self.draw_back = torch.where(started_lift, self._draw_back(), self.draw_back)
         self.drawn &= ~started_lift
         failed_close = self.in_phase(P.CLOSE) & (self.timer >= CLOSE_TIMEOUT_STEPS)
         lost = (self.in_phase(P.LIFT) | self.in_phase(P.HOLD)) & ~grasped & (self.timer > GRASP_CONFIRM_STEPS)
@@ -209,8 +228,11 @@ class PickExpert(SkillExpert):
         # Out of an enclosure the object is first drawn towards the front along the shelf, then lifted: the payload
         # 0.47 m ahead pitches the airframe nose-down as it comes off the shelf (the arm's feedforward covers the
         # arm's own weight only), and the drift that starts towards the fridge's front exceeds the disks' clearance.
+        # An object that droops the forearm is drawn less where it stands near the front: the droop drags it further
+        # back as it comes off the shelf, and a tomato soup can drawn the full 6 cm from 5 cm behind the edge swung
+        # over the edge and below the shelf (the spec's object-drop failure while still held; 4 of 9).
         drawing = self.reaches_in(self.evaluator)
-        back = ENCLOSED_LIFT_BACK_M * drawing.float()
+        back = self.draw_back * drawing.float()
         self.drawn |= (phase == P.LIFT) & (self._along(tcp) <= self._along(self.lift_from) - back + 0.01)
         lift_target = lift_target - back[:, None] * self._forward()
         lift_target[:, 2] = torch.where(drawing & ~self.drawn, self.lift_from[:, 2], lift_target[:, 2])

@@ -186,3 +186,54 @@ def test_a_reach_in_grasp_keeps_the_palm_off_the_near_face_of_a_deep_box():
     centre = base.target.pose.p[0] + torch.tensor([0.0, 0.0, float(base.target_grasp_point[0, 2])])
     assert float(torch.linalg.norm((grasp - centre)[:2])) < 1e-3
     env.close()
+
+
+def test_the_elbow_torque_of_a_level_forearm_tells_which_objects_droop_it():
+    from aerobench.envs.control.arm import ArmParams, elbow_gravity_torque
+
+    platform = PLATFORMS["arm"]
+    arm, fingers = platform.arm, 2 * platform.gripper.finger_mass_kg
+    params = ArmParams.from_spec(arm, platform.gripper)
+    limit = arm.joints[1].torque_limit_nm
+    level = torch.tensor([arm.working_pose_rad])
+    fore, wtg = arm.forearm_length_m, arm.wrist_to_grasp_m
+    drooping = set()
+    for name, spec in OBJECTS.items():
+        if name == "package":
+            continue
+        torque = float(elbow_gravity_torque(level, params, torch.tensor([spec.mass_kg]))[0])
+        # by hand, forearm level: its own mass at its middle, the palm block a third and the fingers three quarters of
+        # the way from the wrist to the grasp point, the object at the grasp point
+        by_hand = G * (arm.forearm_mass_kg * fore / 2 + arm.wrist_mass_kg * (fore + wtg / 3)
+                       + fingers * (fore + 0.75 * wtg) + spec.mass_kg * (fore + wtg))
+        assert math.isclose(torque, by_hand, rel_tol=1e-4), name
+        if torque > limit:
+            drooping.add(name)
+    assert drooping == {"master_chef_can", "cracker_box", "tomato_soup_can", "potted_meat_can"}
+
+
+def test_a_reach_in_draws_a_drooping_can_less_near_the_shelf_edge_and_a_light_box_the_full_way():
+    from aerobench.envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M
+    from aerobench.expert.pick import DROOP_EDGE_KEEP_M, ENCLOSED_LIFT_BACK_M
+
+    # eval seed 22: a tomato soup can 5 cm behind the shelf board's edge (plan index 30; drawn the full 6 cm it swung
+    # over the edge as the forearm drooped: an object-drop failure) and a sugar box (index 2)
+    for index, obj, drooping in ((30, "tomato_soup_can", True), (2, "sugar_box", False)):
+        env, base, pick, _, _ = _chain_experts("open_pick_nav_place", 22 * 1_000_003 + index, obj)
+        try:
+            assert bool(pick.reaches_in(pick.evaluator)[0]) and bool(pick.forearm_droops(pick.evaluator)[0]) == drooping
+            back = float(pick._draw_back()[0])
+            if not drooping:
+                assert math.isclose(back, ENCLOSED_LIFT_BACK_M, rel_tol=1e-6)
+                continue
+            support = base.supports[0, pick.evaluator.support_index[0]]
+            heading = float(pick.heading[0])
+            u = torch.tensor([math.cos(heading), math.sin(heading)])
+            rel = heading - float(support[5])
+            depth = abs(float(support[2]) * math.cos(rel)) + abs(float(support[3]) * math.sin(rel))
+            edge = float(support[:2] @ u) - depth - SUPPORT_EDGE_MARGIN_M
+            centre = float(pick.object_position()[0, :2] @ u)
+            assert 0.0 < back < ENCLOSED_LIFT_BACK_M
+            assert math.isclose(centre - back - edge, DROOP_EDGE_KEEP_M, abs_tol=1e-4)
+        finally:
+            env.close()

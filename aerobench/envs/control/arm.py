@@ -94,6 +94,18 @@ def arm_mass_points_body(q_arm: torch.Tensor, params: ArmParams) -> tuple[torch.
     return masses, positions
 
 
+def elbow_gravity_torque(q_arm: torch.Tensor, params: ArmParams, load_kg: torch.Tensor, gravity: float = GRAVITY) -> torch.Tensor:
+    """Static elbow torque `(N,)` (N m; positive turns the forearm down) that holds the forearm, wrist, fingers and a
+    load `(N,)` at the grasp point still in pose `q_arm` `(N, 3)` on a level airframe. Above the elbow's torque limit
+    the forearm cannot hold the pose: it droops until the load's lever arm is short enough."""
+    masses, r_body = arm_mass_points_body(q_arm, params)
+    points = arm_point_positions_body(q_arm, params.spec)
+    elbow_x = points["elbow"][:, :1]
+    beyond = masses[2:]  # forearm, wrist and fingers (the shoulder servo and the upper arm sit behind the elbow)
+    moment = (beyond * (r_body[:, 2:, 0] - elbow_x)).sum(-1) + load_kg * (points["grasp"][:, 0] - elbow_x[:, 0])
+    return gravity * moment
+
+
 def arm_weight_feedforward_body(
     R: torch.Tensor, q_arm: torch.Tensor, params: ArmParams, gravity: float = GRAVITY, payload_kg: torch.Tensor | None = None
 ) -> torch.Tensor:

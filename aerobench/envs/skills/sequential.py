@@ -26,7 +26,8 @@ class AeroSequentialEnv(AeroSkillEnv):
     pick, fly, place (and close). Args: `setting`, `chain` (default: the setting's first), `object`, `platform`.
 
     **Randomizations.** As the skill envs: layout, materials, lights, object, supports and goals of every stage,
-    fixture states (closed when the chain opens them), and a start 0.5-1 m from the first stage's target.
+    fixture states (closed when the chain opens them), and a start 0.5-1 m from the first stage's target (in
+    front of the handle, within 60 deg of the door's normal, when the chain begins with Open or Close).
 
     **Success conditions.** Every stage's own success, in order. **Fails** when the active stage fails or the flight
     envelope is left. Episodes are 4000 control steps (200 s).
@@ -103,6 +104,7 @@ class AeroSequentialEnv(AeroSkillEnv):
             min_tcp,
             face_anchor=isinstance(first, ArticulationEvaluator),
             from_airframe=isinstance(first, NavEvaluator),
+            within_cone=first.start_cone(env_idx) if isinstance(first, ArticulationEvaluator) else None,
         )
         self.set_drone(env_idx, position, yaw)
         self.stage[env_idx] = 0

@@ -20,6 +20,8 @@ SUPPORT_KINDS = ("table", "counter", "shelf", "cabinet", "sofa", "vehicle", "fri
 START_DISTANCE_M = (0.5, 1.0)  # spec: skill episodes start 0.5-1 m from the target
 START_CLEARANCE_M = 0.10  # drone proxy points this far from any box at the start
 START_CANDIDATES = 96
+SIGHT_POINTS = 12  # per leg of a start's line of sight to its anchor
+SIGHT_SKIP_M = 0.10  # a handle stands a few cm off its door: the line of sight is checked from 10 cm out
 PARKING_DEPTH_M = -2.0  # distractors that find no room wait under the floor
 
 
@@ -78,7 +80,9 @@ class EpisodeStarts:
         `carried_points` `(M, Q, 3)` are points of a held object relative to the tool centre point (world axes);
         `reject(tcp (M, K, 3)) -> (M, K)` vetoes candidates; `from_airframe` measures the distance from the
         airframe centre instead of the tool centre point (navigation targets); `heading` `(M,)` fixes the yaw;
-        `within_cone` (axis `(M, 3)`, min cosine) keeps the start in front of the anchor (a door's outward normal).
+        `within_cone` (axis `(M, 3)`, min cosine) keeps the start in front of the anchor (a door's outward normal) and
+        in plain view of it: no box on the line from the anchor to the tool centre point and on to the airframe (a
+        fridge in a corner has a partition wall 0.5 m beside it, which the cone alone lets a start stand behind).
         """
         m, k = len(env_idx), START_CANDIDATES
         dev = self.device
@@ -116,6 +120,11 @@ class EpisodeStarts:
         if within_cone is not None:
             axis, min_cos = within_cone
             free &= (direction * axis[:, None]).sum(-1) >= min_cos
+            t = torch.linspace(0.0, 1.0, SIGHT_POINTS, device=dev)[None, None, :, None]
+            to_tcp = anchor[:, None, None, :] + (SIGHT_SKIP_M + t * (dist[..., None] - SIGHT_SKIP_M)) * direction[:, :, None]
+            to_airframe = tcp[:, :, None] + t * (airframe - tcp)[:, :, None]
+            sight = torch.cat([to_tcp, to_airframe], dim=2)
+            free &= points_clear_of_boxes(sight.reshape(m, -1, 3), boxes, 0.0).reshape(m, k, -1).all(-1)
         if carried_points is not None:
             pts = (tcp[:, :, None, :] + carried_points[:, None]).reshape(m, -1, 3)
             free &= points_clear_of_boxes(pts, boxes, START_CLEARANCE_M).reshape(m, k, -1).all(-1)
