@@ -16,11 +16,14 @@ from .motion import POSITION_GAIN, YAW_GAIN, flight_action, velocity_towards, wr
 
 ARM_YAW_GAIN = 0.6  # 1/s
 ARM_MAX_YAW_RATE = 0.4  # rad/s
-ARM_DROOP_RAD = 0.15  # an elbow further below its target than this holds the arm elsewhere than commanded
-# A held elbow's gravity moment falls with the cosine of the forearm's droop: 0.2 rad below the torque-limited droop
-# of a 0.37 kg can (0.6 rad) asks about 85% of the limit.
-ARM_DROOP_MARGIN_RAD = 0.2
-
+# A held heavy object droops a level forearm (its static elbow torque exceeds the elbow's 0.9 N m); the elbow then sits
+# at its torque limit with nothing left to damp with, and the object swings on it with the airframe's accelerations
+# (m a r: 0.37 kg x 2 m/s^2 x 0.24 m = 0.18 N m). Carried, the forearm is turned down until the static torque is at
+# most this share of the limit (about 1.05-1.1 rad below level for the 0.37-0.41 kg cans), so the servo has the rest
+# for the swing: at 85% (0.2 rad below where it hung) the elbow swung between 0.07 and 0.97 rad below level in flight.
+HELD_ELBOW_TORQUE_SHARE = 0.6
+HELD_DROOP_STEP_RAD = 0.05
+HELD_DROOP_MAX_RAD = 1.5
 
 class SkillExpert:
     """Base of the per-skill experts. `evaluator` is the env's evaluator of the skill being demonstrated."""
@@ -84,18 +87,21 @@ class SkillExpert:
         torque = elbow_gravity_torque(self.pick_arm_pose(pick), self.arm_params, self.env.target_mass)
         return torque > self.arm_params.torque_limit[ELBOW]
 
-    def hanging_arm_pose(self, commanded: torch.Tensor) -> torch.Tensor:
-        """`(N, 3)` the arm pose to hold a load in: `commanded`, except where the load has drooped the elbow more
-        than `ARM_DROOP_RAD` below it (a heavy object on a level forearm needs more than the elbow's 0.9 N m). There
-        the servo sits at its torque limit, with no torque left for damping, and the arm and the object swing with the
-        airframe; so the elbow is commanded `ARM_DROOP_MARGIN_RAD` below where it hangs, inside the limit."""
-        q = self.env.agent.arm_qpos()
-        error = q - commanded
-        # positive pitch turns the forearm down; the shoulder and the wrist hold (an arm still on its way is not drooped)
-        drooped = (error[:, 1] > ARM_DROOP_RAD) & (error[:, [0, 2]].abs() < ARM_DROOP_RAD).all(-1)
-        held = commanded.clone()
-        held[:, 1] = q[:, 1] + ARM_DROOP_MARGIN_RAD
-        return torch.where(drooped[:, None], held, commanded)
+    def held_arm_pose(self, pose: torch.Tensor) -> torch.Tensor:
+        """`(N, 3)` the arm pose to carry the target object in: `pose`, except where its static elbow torque with the
+        object at the grasp point exceeds the elbow's limit (a heavy can on a level forearm); there the elbow is turned
+        down from `pose` by the first multiple of `HELD_DROOP_STEP_RAD` whose static torque is at most
+        `HELD_ELBOW_TORQUE_SHARE` of the limit."""
+        steps = torch.arange(0.0, HELD_DROOP_MAX_RAD + 1e-6, HELD_DROOP_STEP_RAD, device=self.device)  # (K,)
+        candidates = pose[None].repeat(len(steps), 1, 1)
+        candidates[..., ELBOW] += steps[:, None]
+        load = self.env.target_mass.expand(self.n).repeat(len(steps))
+        torque = elbow_gravity_torque(candidates.reshape(-1, 3), self.arm_params, load).reshape(len(steps), self.n)
+        within = torque <= HELD_ELBOW_TORQUE_SHARE * self.arm_params.torque_limit[ELBOW]
+        first = torch.where(within.any(0), within.float().argmax(0), torch.full_like(within[0], len(steps) - 1, dtype=torch.long))
+        held = pose.clone()
+        held[:, ELBOW] = pose[:, ELBOW] + steps[first]
+        return torch.where((torque[0] > self.arm_params.torque_limit[ELBOW])[:, None], held, pose)
 
     def act(self) -> torch.Tensor:
         raise NotImplementedError

@@ -69,6 +69,9 @@ class NavExpert(SkillExpert):
         # pose it holds the object in); it folds where the route starts
         self.carry_pose = self.arm_carry.expand(self.n, 3).clone() if self.has_arm else None
         self.folded = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # latched once the arm has folded
+        # a heavy object is carried with the forearm turned down (`held_arm_pose`): it hangs lower and nearer than the
+        # planner assumed at reset, so the route is planned again once the arm has folded
+        self.held_low = torch.zeros(self.n, dtype=torch.bool, device=self.device)
 
     def reset(self, env_idx):
         super().reset(env_idx)
@@ -79,7 +82,9 @@ class NavExpert(SkillExpert):
         self.velocity_command[env_idx] = state.velocity[env_idx]  # a ramp starts from how the drone moves now
         yaw = state.yaw
         if self.has_arm and self.after_pick is not None:
-            self.carry_pose[env_idx] = self.carry_arm_pose(self.after_pick)[env_idx]
+            level = self.carry_arm_pose(self.after_pick)
+            self.carry_pose[env_idx] = self.held_arm_pose(level)[env_idx]
+            self.held_low[env_idx] = (self.carry_pose != level).any(-1)[env_idx]
         self.folded[env_idx] = False
         back = BACK_OUT_M * torch.stack([torch.cos(yaw), torch.sin(yaw), torch.zeros_like(yaw)], -1)
         for i in env_idx.tolist():
@@ -145,16 +150,14 @@ class NavExpert(SkillExpert):
         return near[:, 0] & near[:, 2] & (near[:, 1] | drooped)  # positive pitch turns the forearm down
 
     def _replan_drooped(self, rows: list[int]) -> None:
-        """For envs whose arm hangs below the carry pose: hold it where it can (`hanging_arm_pose`) and plan the route
-        again from here (the held object lower and nearer than the planner assumed at reset)."""
-        hang_pose = self.hanging_arm_pose(self.carry_pose)
-        rows = [i for i in rows if not torch.equal(hang_pose[i], self.carry_pose[i])]
+        """For envs that carry the object with the forearm turned down (`held_arm_pose`): plan the route again from
+        here, with the held object's depth measured in that pose."""
+        rows = [i for i in rows if bool(self.held_low[i])]
         if not rows:
             return
         state = self.state()
         depth = self.held_depth(torch.tensor(rows, device=self.device))
         for k, i in enumerate(rows):
-            self.carry_pose[i] = hang_pose[i]  # commanded, and the planner's arm pose
             self.depth[i] = depth[k]
             start, goal = state.position[i].cpu().numpy(), self.evaluator.target[i].cpu().numpy()
             heading, route = self._plan(i, start, goal, float(self.heading[i]))

@@ -66,8 +66,8 @@ class PlaceExpert(SkillExpert):
         # The arm platform places in the pose it carried the object in (`carry_arm_pose`): unfolding to the working
         # pose over a drawer swept the forearm into it.
         self.arm_pose = self.arm_rest.expand(self.n, 3).clone() if self.has_arm else None
-        # ... or, where a heavy object droops the forearm (`hanging_arm_pose`), as it hangs until the support carries
-        # the object, then in the pose of the pick again (levelling it onto its base)
+        # ... or, with a heavy object, with the forearm turned down as it was carried (`held_arm_pose`) until the
+        # support carries the object, then in the pose of the pick again (levelling it onto its base)
         self.level_pose = None if self.arm_pose is None else self.arm_pose.clone()
         self.levelling = torch.zeros(self.n, dtype=torch.bool, device=self.device)
         self.backed_off = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # the side grasp's hand is clear
@@ -86,7 +86,7 @@ class PlaceExpert(SkillExpert):
         self.heading[env_idx] = state.yaw[env_idx]
         if self.has_arm:
             self.level_pose[env_idx] = self.carry_arm_pose(self.pick)[env_idx]
-            self.arm_pose[env_idx] = self.hanging_arm_pose(self.level_pose)[env_idx]
+            self.arm_pose[env_idx] = self.held_arm_pose(self.level_pose)[env_idx]
         airframe_goal = self.above_goal_tcp() + (state.position - self.tcp())
         depth = dict(zip(env_idx.tolist(), self.held_depth(env_idx).tolist()))
         for i in env_idx.tolist():

@@ -30,6 +30,7 @@ CLEARANCE_M = 0.08  # proxy points must stay this far from boxes along a straigh
 CRUISE_ALTITUDES_M = (1.3, 1.5, 1.7, 1.9, 2.1, 2.4, 2.7, 3.0)  # tried low to high, within the workspace
 SLAB_ABOVE_M = 0.12  # rotor disks are 0.06 m above the centre, plus margin
 MAX_EXPANSIONS = 200_000
+WORKSPACE_MARGIN_M = 0.05
 START_SKIP_M = 0.10  # the drone is at the start: its first 10 cm are not re-checked
 HANG_RADIUS_M = 0.06  # the gripper (and a held object) below the drone, as a small ring
 MIN_VERTICAL_CLEARANCE_M = 0.02  # a climb / descent next to a wall may keep less than CLEARANCE_M, never less than this
@@ -139,9 +140,15 @@ class RoutePlanner:
                 blocked |= _rect_distance_2d(cells + np.array([dx, dy]), self.boxes[in_slab]).min(-1) < CLEARANCE_M
         elif in_slab.any():
             blocked = _rect_distance_2d(cells, self.boxes[in_slab]).min(-1) < self.reach + CLEARANCE_M
-        margin = self.reach + 0.05
-        blocked |= (cells[:, 0] < self.lo[0] + margin) | (cells[:, 0] > self.hi[0] - margin)
-        blocked |= (cells[:, 1] < self.lo[1] + margin) | (cells[:, 1] > self.hi[1] - margin)
+        # the drone stays WORKSPACE_MARGIN_M inside the workspace: with a known heading its footprint's own extent
+        # each way (an arm reaching 0.47 m ahead is no reason to keep 0.52 m from a wall beside it), else its reach
+        if self.footprint is not None:
+            low, high = self.footprint[:, :2].min(0), self.footprint[:, :2].max(0)
+        else:
+            low, high = np.full(2, -self.reach), np.full(2, self.reach)
+        for axis in (0, 1):
+            blocked |= cells[:, axis] + low[axis] < self.lo[axis] + WORKSPACE_MARGIN_M
+            blocked |= cells[:, axis] + high[axis] > self.hi[axis] - WORKSPACE_MARGIN_M
         return xs, ys, blocked.reshape(len(xs), len(ys))
 
     @staticmethod

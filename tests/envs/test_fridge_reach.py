@@ -55,3 +55,24 @@ def test_at_the_grasp_the_rotor_disks_clear_the_fridge_and_its_open_door(obj):
         behind_front = float((shelf[0:2] - base.target.pose.p[0, :2]) @ along) + float(shelf[2]) + articulated.SUPPORT_EDGE_MARGIN_M + articulated.FRIDGE_SHELF_SETBACK_M
         assert 0.02 < behind_front < 0.47 - 0.321, (seed, behind_front)
     env.close()
+
+
+@pytest.mark.parametrize("obj, seed", [("sugar_box", 22 * 1_000_003 + 47), ("gelatin_box", 20000060), ("tuna_fish_can", 20000061)])
+def test_on_a_fridge_shelf_the_open_fingers_clear_the_side_wall(obj, seed):
+    # the fingers close across the way in, their open pads 55 mm and their outer faces 65 mm either side of the grasp
+    # point: a sugar box 5 mm off the fridge's side wall (seed 22's episode 47) left the far finger in the wall, and
+    # the grasp never closed
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement",
+                   chain="open_pick_nav_place")
+    base = env.unwrapped
+    gripper = base.platform.gripper
+    _, info = env.reset(seed=seed, options={"reconfigure": True, "objects": [obj]})
+    assert not bool(info["init_failed"][0])
+    pick = base.evaluators[1]
+    assert bool(pick.enclosed[0])
+    shelf = base.supports[0, pick.support_index[0]]
+    across = torch.stack([-torch.sin(shelf[5]), torch.cos(shelf[5])])  # the shelf's y: across the fridge
+    side = float((base.target.pose.p[0, :2] - shelf[0:2]) @ across)
+    to_wall = articulated.FRIDGE_WIDTH_M / 2 - articulated.FRIDGE_WALL_M - abs(side)
+    assert to_wall >= gripper.max_opening_m / 2 + gripper.finger_thickness_m, (side, to_wall)
+    env.close()

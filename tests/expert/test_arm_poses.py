@@ -113,35 +113,46 @@ def test_the_transport_plans_for_where_the_top_down_grasp_holds_a_tall_box():
 
 
 class _ArmAt:
-    """The slice of an env `SkillExpert` reads for the arm: one arm-platform env whose arm is at `q`."""
+    """The slice of an env `SkillExpert` reads for the arm: one arm-platform env holding an object of `load_kg`."""
 
-    def __init__(self, q):
+    def __init__(self, load_kg: float):
         self.num_envs, self.device, self.platform = 1, torch.device("cpu"), PLATFORMS["arm"]
-        self.agent = type("Agent", (), {"arm_qpos": lambda _self: torch.tensor([q])})()
+        self.target_mass = torch.tensor([load_kg])
 
 
-def test_a_heavy_can_on_a_level_forearm_exceeds_the_elbow_and_is_held_where_it_hangs():
-    from aerobench.expert.base import ARM_DROOP_MARGIN_RAD, SkillExpert
+def test_a_heavy_can_on_a_level_forearm_exceeds_the_elbow_and_is_carried_with_the_forearm_turned_down():
+    from aerobench.envs.control.arm import ArmParams, elbow_gravity_torque
+    from aerobench.expert.base import HELD_ELBOW_TORQUE_SHARE, SkillExpert
 
     arm = PLATFORMS["arm"].arm
     elbow_limit = arm.joints[1].torque_limit_nm
+    can = OBJECTS["tomato_soup_can"].mass_kg
     # the carry pose keeps the forearm level: a 0.37 kg can at the grasp point asks more than the elbow has ...
-    assert _gravity_torques(arm.carry_pose_rad, OBJECTS["tomato_soup_can"].mass_kg)[1] > elbow_limit
+    assert _gravity_torques(arm.carry_pose_rad, can)[1] > elbow_limit
     # ... and a drooping forearm asks less (the moment arm shrinks with the cosine of the droop)
     drooped = (arm.carry_pose_rad[0], arm.carry_pose_rad[1] + 0.8, 0.0)
-    assert _gravity_torques(drooped, OBJECTS["tomato_soup_can"].mass_kg)[1] < elbow_limit
+    assert _gravity_torques(drooped, can)[1] < elbow_limit
     carry = torch.tensor([arm.carry_pose_rad])
-    # an elbow hanging 0.6 rad below the carry pose is commanded a margin below where it hangs, inside the limit
-    hanging = SkillExpert(_ArmAt((1.57, -0.97, 0.0)), None).hanging_arm_pose(carry)
-    assert torch.allclose(hanging, torch.tensor([[1.57, -0.97 + ARM_DROOP_MARGIN_RAD, 0.0]]))
-    # an arm that holds its pose (a light object) keeps the command
-    assert torch.equal(SkillExpert(_ArmAt((1.55, -1.50, 0.02)), None).hanging_arm_pose(carry), carry)
+    # carried, the forearm is turned down until the elbow holds the can with 40% of its limit to spare, and no further
+    held = SkillExpert(_ArmAt(can), None).held_arm_pose(carry)
+    droop = float(held[0, 1] - carry[0, 1])
+    assert torch.equal(held[0, [0, 2]], carry[0, [0, 2]])
+    assert _gravity_torques(tuple(held[0].tolist()), can)[1] <= HELD_ELBOW_TORQUE_SHARE * elbow_limit + 0.02
+    # ... the first such droop: 0.1 rad less asks more (the product's torque, with the fingers' mass)
+    params = ArmParams.from_spec(arm, PLATFORMS["arm"].gripper)
+    less = held.clone()
+    less[0, 1] -= 0.1
+    assert float(elbow_gravity_torque(less, params, torch.tensor([can]))) > HELD_ELBOW_TORQUE_SHARE * elbow_limit
+    assert 0.9 < droop < 1.2  # about 1.05 rad below level for this can
+    # an object the level forearm holds (the tuna fish can) keeps the pose it was given
+    assert torch.equal(SkillExpert(_ArmAt(OBJECTS["tuna_fish_can"].mass_kg), None).held_arm_pose(carry), carry)
 
 
 def test_the_fridge_chain_carries_a_heavy_can_with_the_forearm_drooped_and_levels_it_onto_the_table():
     # seed 20's tomato soup can (LongHorizonRearrangement plan index 3): lifted off the fridge shelf, the forearm
     # droops 0.6-0.7 rad under the 0.37 kg can; the transport used to wait for a carry pose the elbow cannot reach
-    # (a no-progress truncation). Now it flies with the arm where it hangs and the place levels the can on the table.
+    # (a no-progress truncation). Now it flies with the forearm turned down (`held_arm_pose`, inside the elbow's
+    # limit) and the place levels the can on the table.
     env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="LongHorizonRearrangement", chain="open_pick_nav_place")
     base = env.unwrapped
     env.reset(seed=20 * 1_000_003 + 3, options={"reconfigure": True, "objects": ["tomato_soup_can"]})
@@ -149,13 +160,18 @@ def test_the_fridge_chain_carries_a_heavy_can_with_the_forearm_drooped_and_level
     expert.reset(ENV0)
     carry = torch.tensor(base.platform.arm.carry_pose_rad)
     drooped_in_transport = False
+    folded_elbow = []  # the elbow through the flight, a second after folding: held, not swinging on its torque limit
     for _ in range(2400):
         _, _, terminated, truncated, info = env.step(expert.act())
         if int(expert.stage[0]) == 2:
             drooped_in_transport |= float(base.agent.arm_qpos()[0, 1] - carry[1]) > 0.3
+            if bool(expert.experts[2].folded[0]):
+                folded_elbow.append(float(base.agent.arm_qpos()[0, 1]))
         if bool(terminated[0] or truncated[0]):
             break
+    folded_elbow = folded_elbow[20:]  # the fold itself whips the elbow through its target
     assert drooped_in_transport
+    assert len(folded_elbow) > 50 and max(folded_elbow) - min(folded_elbow) < 0.1, (min(folded_elbow), max(folded_elbow))
     assert bool(info["success"][0]), {k: float(v[0]) for k, v in info.items() if k.startswith(("fail", "subtask"))}
     assert float(info["is_object_upright"][0]) == 1.0
     env.close()

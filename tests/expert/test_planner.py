@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+import torch
 
 from aerobench.envs.geometry import drone_proxy_points_body
 from aerobench.envs.platforms import GRIPPER_PLATFORM
@@ -105,3 +106,26 @@ def test_a_transport_whose_goal_is_blocked_for_what_hangs_below_ends_a_little_hi
     lift = route[-1][2] - goal[2]
     assert min(abs(lift - x) for x in GOAL_LIFTS_M[1:]) < 1e-9 and lift < NAV_REACH_M
     assert np.allclose(route[-1][:2], goal[:2])
+
+
+def test_a_footprint_keeps_its_own_extent_from_the_workspace_edge_not_the_any_heading_reach():
+    # the arm platform facing +y reaches 0.47 m ahead but only the rotor disks' 0.32 m sideways: a route to a point
+    # 0.45 m from the workspace's west edge, round a partition, exists at that heading; the edge margin used to be
+    # the any-heading reach (0.52 m), which left the fridge's pre-grasp point beside a wall without a route
+    from aerobench.envs.control.arm import arm_point_positions_body
+    from aerobench.envs.platforms import ARM_PLATFORM
+
+    heading = math.pi / 2
+    c, s = math.cos(heading), math.sin(heading)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    arm = arm_point_positions_body(torch.tensor([ARM_PLATFORM.arm.working_pose_rad]), ARM_PLATFORM.arm)
+    body = np.concatenate([drone_proxy_points_body(ARM_PLATFORM)[0].numpy(), arm["grasp"].numpy()])
+    fp = body @ rot.T
+    reach = float(np.hypot(*arm["grasp"][0, :2].numpy())) + 0.05
+    boxes = np.array([wall(-1.5, -3.0, 1.0)], dtype=np.float64)  # a partition: the straight line is blocked
+    start, goal = np.array([0.0, 0.0, 1.3]), np.array([LO[0] + 0.45, 0.0, 1.3])
+    assert not RoutePlanner(boxes, LO, HI, reach, 0.05, fp).segment_free(start, goal)
+    route = RoutePlanner(boxes, LO, HI, reach, 0.05, fp).plan(start, goal)
+    assert route is not None and np.allclose(route[-1], goal)
+    # ... and a footprint reaching past the edge still has none
+    assert RoutePlanner(boxes, LO, HI, reach, 0.05, fp).plan(start, np.array([LO[0] + 0.30, 0.0, 1.3])) is None

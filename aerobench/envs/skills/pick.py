@@ -116,7 +116,11 @@ class PickEvaluator(SkillEvaluator):
         rim = torch.where(env.target_grasps_rim[env_idx], env.target_grasp_point[env_idx, 0], 0.0)
         depth_lo = setback + along + ENCLOSED_EDGE_MARGIN_M
         depth_hi = torch.full_like(depth_lo, reach)
-        side_lo = -inner + across + ENCLOSED_EDGE_MARGIN_M  # away from the hinge, on the board
+        # away from the hinge: the object on the board, and the open fingers' outer faces (either side of the grasp
+        # point, which a rim grasp has off the object's centre) clear of the side wall (a box 5 mm off the wall left
+        # the far finger in it and the grasp never closed)
+        open_half = env.platform.gripper.max_opening_m / 2 + env.platform.gripper.finger_thickness_m
+        side_lo = -inner + torch.maximum(across, open_half - rim) + ENCLOSED_EDGE_MARGIN_M
         side_hi = outer - ENCLOSED_ROTOR_CLEARANCE_M - disks - sideways - rim  # the disks clear of the door's plane
         u = torch.rand(len(env_idx), 2, device=self.device)
         depth = depth_lo + u[:, 0] * (depth_hi - depth_lo).clamp_min(0.0)
