@@ -134,7 +134,7 @@ class NavExpert(SkillExpert):
             newly = ~backing & ~self.folded & self._arm_folded()
             self.folded |= newly
             if newly.any():  # a re-planned route may start with another heading: targets as above, on the new route
-                self._replan_drooped(newly.nonzero()[:, 0].tolist())
+                self._replan_held_low(newly.nonzero()[:, 0].tolist())
                 target, _ = self.route.target(state.position)
                 target = torch.where((~backing & ~self.turned)[:, None], self.turn_at, target)
                 yaw = torch.where(backing, self.start_yaw, self.heading)
@@ -149,7 +149,7 @@ class NavExpert(SkillExpert):
         drooped = (error[:, 1] > 0) & (self.env.agent.arm_qvel().abs().max(-1).values < ARM_AT_REST_RADPS)
         return near[:, 0] & near[:, 2] & (near[:, 1] | drooped)  # positive pitch turns the forearm down
 
-    def _replan_drooped(self, rows: list[int]) -> None:
+    def _replan_held_low(self, rows: list[int]) -> None:
         """For envs that carry the object with the forearm turned down (`held_arm_pose`): plan the route again from
         here, with the held object's depth measured in that pose."""
         rows = [i for i in rows if bool(self.held_low[i])]
