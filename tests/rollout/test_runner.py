@@ -102,15 +102,14 @@ def test_shards_then_merge(tmp_path):
     scope: dict = {}
     exec(snippet, scope)  # the card's loading code works as written
     assert scope["ds"].num_episodes == 4
-
-
-def test_a_folder_with_another_dataset_is_refused_untouched(tmp_path):
-    out = tmp_path / "ds"
-    assert _generate(out, "--no-cameras", episodes=1).returncode == 0
-    before = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
-    r = _generate(out, "--no-cameras", "--seed", "5", episodes=1)
+    # the merged folder holds this dataset: another plan (a different seed) is refused and nothing in it is touched
+    before = sorted((str(p.relative_to(out)), p.stat().st_mtime_ns) for p in out.rglob("*"))
+    r = _generate(out, "--no-cameras", "--seed", "5", episodes=4)
     assert r.returncode == 2 and "holds a different dataset" in r.stderr and len(r.stderr.strip().splitlines()) == 1
-    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == before
+    assert sorted((str(p.relative_to(out)), p.stat().st_mtime_ns) for p in out.rglob("*")) == before
+
+
+def test_a_bad_shard_is_one_line_and_creates_nothing(tmp_path):
     r = subprocess.run(CLI + ["generate", "--setting", "TidyHouse", "--skills", "nav", "--episodes", "1", "--shard", "3/2",
                               "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120, env=ENV)
     assert r.returncode == 2 and r.stderr.strip() == "aerobench generate: error: --shard must be i/k with 0 <= i < k, got 3/2"

@@ -181,7 +181,9 @@ def load_aot_step(step: Callable, tensors: list[torch.Tensor], platform: Platfor
         finally:
             if os.path.exists(tmp):
                 os.remove(tmp)
-    return torch._inductor.aoti_load_package(str(path)).loader.run
+    # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it).
+    with torch._inductor.config.patch(AOT_INDUCTOR_OPTIONS):
+        return torch._inductor.aoti_load_package(str(path)).loader.run
 
 
 def compile_requested() -> bool:
