@@ -62,3 +62,29 @@ def test_the_single_skill_open_start_shares_the_cone():
         assert float(to_start @ axis[0]) / float(torch.linalg.norm(to_start)) >= START_CONE_COS - 1e-4
     finally:
         env.close()
+
+
+
+# TidyHouse chained-protocol starts (eval seed 20, plan indices) whose place goal had a distractor beside it: the object
+# was set down against the distractor and the place failed its collision budget (5 of the 6 place failures of that
+# 90-start run; docs/expert.md, "Eighth pass").
+CROWDED_GOALS = [11, 15, 35, 77, 86]
+
+
+def test_a_chains_distractors_stand_clear_of_its_place_goal():
+    from aerobench.envs.skills.starts import PARKING_DEPTH_M
+
+    objects = get_setting("TidyHouse").objects
+    env = gym.make("AeroSequential-v1", obs_mode="state_dict", setting="TidyHouse", chain="pick_nav_place")
+    distances = []
+    try:
+        for index in CROWDED_GOALS:
+            env.reset(seed=20 * SEED_STRIDE + index, options={"reconfigure": True, "objects": [objects[index % 9]]})
+            base = env.unwrapped
+            goal = base.evaluators[-1].goal[0]
+            distances += [float(torch.linalg.norm((d.pose.p[0] - goal)[:2])) for d in base.distractors
+                          if float(d.pose.p[0, 2]) > PARKING_DEPTH_M + 1.0]  # the ones standing in the room
+    finally:
+        env.close()
+    assert len(distances) >= 4  # most still find room
+    assert min(distances) > 0.25, distances  # the clearance single-skill Place keeps from its goal

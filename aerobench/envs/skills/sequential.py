@@ -92,8 +92,9 @@ class AeroSequentialEnv(AeroSkillEnv):
                     target = later.anchor(env_idx) + torch.tensor([0.0, 0.0, NAV_ABOVE_PLACE_ANCHOR_M], device=self.device)
                     names = [later.instruction(i).split(" on ", 1)[-1] for i in env_idx.tolist()]
                     ev.set_target(env_idx, target, [f"above {n}" for n in names])
-        if self.target is not None:
-            self.place_distractors(env_idx, self.target.pose.p[env_idx], self.setting.pick_supports)
+        if self.target is not None:  # clear of the object and of where the chain will set it down
+            goals = [ev.goal[env_idx] for ev in self.evaluators if isinstance(ev, PlaceEvaluator)]
+            self.place_distractors(env_idx, [self.target.pose.p[env_idx], *goals], self.setting.pick_supports)
         first = self.evaluators[0]
         min_tcp = first.min_start_tcp_height(env_idx) if isinstance(first, PickEvaluator) else torch.full(
             (len(env_idx),), -1e9, device=self.device

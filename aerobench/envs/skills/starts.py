@@ -150,9 +150,11 @@ class EpisodeStarts:
         actor.set_linear_velocity(torch.zeros(len(env_idx), 3, device=self.device))
         actor.set_angular_velocity(torch.zeros(len(env_idx), 3, device=self.device))
 
-    def place_distractors(self, env_idx: torch.Tensor, avoid: torch.Tensor, kinds: tuple[str, ...]) -> None:
-        """Distractors on random supports, away from `avoid` `(M, 3)` (the target) and from each other."""
-        placed = [avoid]
+    def place_distractors(self, env_idx: torch.Tensor, avoid: torch.Tensor | list[torch.Tensor],
+                          kinds: tuple[str, ...]) -> None:
+        """Distractors on random supports, away from each point of `avoid` (`(M, 3)` each: the target, and in a chain
+        every place goal too) and from each other."""
+        placed = list(avoid) if isinstance(avoid, (list, tuple)) else [avoid]
         nowhere = torch.full((len(env_idx), 3), 1e6, device=self.device)  # a parked distractor blocks no spot
         for i, actor in enumerate(self.distractors):
             index, ok = self.sample_supports(env_idx, kinds)
