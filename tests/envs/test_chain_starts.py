@@ -67,7 +67,7 @@ def test_the_single_skill_open_start_shares_the_cone():
 
 # TidyHouse chained-protocol starts (eval seed 20, plan indices) whose place goal had a distractor beside it: the object
 # was set down against the distractor and the place failed its collision budget (5 of the 6 place failures of that
-# 90-start run; docs/expert.md, "Eighth pass").
+# 90-start run; docs/expert.md, "The chains re-measured").
 CROWDED_GOALS = [11, 15, 35, 77, 86]
 
 
