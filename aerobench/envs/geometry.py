@@ -84,6 +84,22 @@ def level_drone_points(positions: torch.Tensor, yaw: torch.Tensor, points_body: 
     )
 
 
+def level_airframe_room(
+    grasp_points: torch.Tensor, headings: torch.Tensor, grasp_body: torch.Tensor, boxes: torch.Tensor,
+    points_body: torch.Tensor, radius: float,
+) -> torch.Tensor:
+    """The clearance `(N, K)` a level airframe keeps from `boxes` `(N, B, 8)` when its grasp point stands at
+    `grasp_points` `(N, K, 3)` with heading `headings` `(N, K)`; `grasp_body` `(N, 3)` is the grasp point in the body
+    frame (the arm's pose), `points_body` / `radius` the airframe's proxy points (`drone_proxy_points_body`)."""
+    c, s = torch.cos(headings), torch.sin(headings)
+    gx, gy, gz = grasp_body[:, None, 0], grasp_body[:, None, 1], grasp_body[:, None, 2]
+    centres = grasp_points - torch.stack([c * gx - s * gy, s * gx + c * gy, gz.expand_as(c)], -1)
+    points = level_drone_points(centres, headings, points_body)  # (N, K, P, 3)
+    n, k, p = points.shape[:3]
+    room = point_box_distance(points.reshape(n, k * p, 3), boxes).min(-1).values.reshape(n, k, p).min(-1).values
+    return room - radius
+
+
 def boxes_near(points: torch.Tensor, boxes: torch.Tensor, reach_m: float) -> torch.Tensor:
     """The boxes `(N, B', 8)` of `boxes` that may come within `reach_m` of any of `points` `(N, Q, 3)` in some env;
     for the others "distance > reach" holds for every point (signed distance is 1-Lipschitz: a box further than

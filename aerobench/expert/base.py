@@ -12,6 +12,7 @@ import torch
 from ..envs.control.arm import ELBOW, ArmParams, elbow_gravity_torque
 from ..envs.control.virtual_joints import AirframeState
 from ..envs.platforms import CONTROL_HZ, MAX_YAW_RATE_RPS
+from ..envs.skills.place import carried_arm_pose
 from .motion import POSITION_GAIN, YAW_GAIN, flight_action, velocity_towards, wrap_angle, yaw_rate_towards
 
 ARM_YAW_GAIN = 0.6  # 1/s
@@ -74,9 +75,7 @@ class SkillExpert:
         """`(N, 3)` arm joint targets while carrying what `pick` grasped (None: the working pose, e.g. a Place start):
         folded under the airframe (`carry_pose_rad`) after a reach-in, else the top-down pose it was picked in. Both
         keep the forearm's angle, so the object stays upright."""
-        if pick is None:
-            return self.arm_rest.expand(self.n, 3)
-        return torch.where(self.reaches_in(pick)[:, None], self.arm_carry, self.arm_top_down)
+        return carried_arm_pose(self.platform.arm, None if pick is None else pick.enclosed, self.n, self.device)
 
     def forearm_droops(self, pick) -> torch.Tensor:
         """`(N,)` envs where the object `pick` grasps is too heavy for the forearm in the pose it is picked in: the

@@ -14,7 +14,7 @@ from enum import IntEnum
 import torch
 
 from .base import SkillExpert
-from .motion import POSITION_GAIN, wrap_angle
+from .motion import POSITION_GAIN, TURN_TOLERANCE_RAD, wrap_angle
 from .planner import planner_for
 from .route import RouteFollower
 
@@ -71,6 +71,11 @@ class PlaceExpert(SkillExpert):
         self.level_pose = None if self.arm_pose is None else self.arm_pose.clone()
         self.levelling = torch.zeros(self.n, dtype=torch.bool, device=self.device)
         self.backed_off = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # the side grasp's hand is clear
+        # Where the env's place heading is not the one the place begins with (an arm platform's goal by a wall), the
+        # drone first turns to it in place: carrying the object over the goal at the old heading stood the airframe
+        # in the wall before the turn had come round (docs/expert.md, "The place's heading").
+        self.turn_at = torch.zeros(self.n, 3, device=self.device)
+        self.turned = torch.ones(self.n, dtype=torch.bool, device=self.device)
 
     def above_goal_tcp(self) -> torch.Tensor:
         """Tool-centre-point target of the transport: the held object's bottom over the goal, with clearance."""
@@ -83,7 +88,9 @@ class PlaceExpert(SkillExpert):
         self.levelling[env_idx] = False
         self.backed_off[env_idx] = False
         state = self.state()
-        self.heading[env_idx] = state.yaw[env_idx]
+        self.heading[env_idx] = self.evaluator.heading[env_idx]  # the env's place heading (a policy reads it too)
+        self.turn_at[env_idx] = state.position[env_idx]
+        self.turned[env_idx] = wrap_angle(self.heading - state.yaw)[env_idx].abs() < TURN_TOLERANCE_RAD
         if self.has_arm:
             self.level_pose[env_idx] = self.carry_arm_pose(self.pick)[env_idx]
             self.arm_pose[env_idx] = self.held_arm_pose(self.level_pose)[env_idx]
@@ -106,7 +113,9 @@ class PlaceExpert(SkillExpert):
         above = goal + torch.tensor([0.0, 0.0, TRANSPORT_CLEARANCE_M], device=self.device)
         xy_error = torch.linalg.norm((obj - goal)[:, :2], dim=-1)
 
-        self.goto(P.TRANSPORT, torch.linalg.norm(obj - above, dim=-1) < 0.04, P.ALIGN)
+        self.turned |= wrap_angle(self.heading - state.yaw).abs() < TURN_TOLERANCE_RAD
+        turning = ~self.turned & (self.phase == P.TRANSPORT)
+        self.goto(P.TRANSPORT, self.turned & (torch.linalg.norm(obj - above, dim=-1) < 0.04), P.ALIGN)
         self.goto(P.ALIGN, (xy_error < ALIGN_TOLERANCE_M) & (speed < SETTLED_MPS), P.DESCEND)
         # Release on what the task state shows (Place `progress` = the set-down time), never on a private timer: a
         # policy that sees the same inputs can learn when to open (docs/experiments.md, "What fails: the release").
@@ -129,6 +138,7 @@ class PlaceExpert(SkillExpert):
         waypoint, last = self.route.target(state.position)
         en_route = (phase == P.TRANSPORT) & ~last
         target = torch.where(en_route[:, None], waypoint + (tcp - state.position), target)
+        target = torch.where(turning[:, None], self.turn_at + (tcp - state.position), target)  # the airframe holds
         contact = goal + hang - torch.tensor([0.0, 0.0, 0.01], device=self.device)  # aim 1 cm into the surface
         target = torch.where((phase == P.DESCEND)[:, None], contact, target)
         on_surface = (phase == P.DESCEND) & ((obj[:, 2] - goal[:, 2]) < 0.004)

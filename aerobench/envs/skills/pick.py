@@ -11,7 +11,7 @@ from mani_skill.utils.structs.pose import Pose
 from ..checks import FailureCause, consecutive
 from ..control.arm import arm_point_positions_body
 from ..control.so3 import quat_wxyz_to_matrix
-from ..geometry import level_drone_points, point_box_distance
+from ..geometry import level_airframe_room
 from ..observations import wrap_to_period
 from ..scenes import articulated
 from ..tasks import instruction
@@ -151,18 +151,15 @@ class PickEvaluator(SkillEvaluator):
         """`(N,)` the planned grasp heading, or where the arm platform's airframe would stand within TOP_DOWN_ROOM_M of
         the scene above the object at it, the equivalent grasp heading (by the object's symmetry) with the most room."""
         env, arm = self.env, self.env.platform.arm
-        grasp = arm_point_positions_body(torch.tensor([arm.top_down_pose_rad], device=self.device), arm)["grasp"][0]
+        grasp = arm_point_positions_body(torch.tensor([arm.top_down_pose_rad], device=self.device), arm)["grasp"]
         turns = torch.arange(4, device=self.device)
         headings = planned[:, None] + turns[None] * self.heading_period[:, None]  # (N, 4); repeats for boxes
-        c, s = torch.cos(headings), torch.sin(headings)
-        centre = env.target.pose.p[:, None, :] - torch.stack(
-            [c * grasp[0] - s * grasp[1], s * grasp[0] + c * grasp[1], grasp[2].expand_as(c)], -1
-        )
-        points = level_drone_points(centre, headings, env.proxy_points)  # (N, 4, P, 3)
-        n, k, p = points.shape[:3]
+        n = len(headings)
         boxes = env.obstacle_boxes(torch.arange(n, device=self.device))
-        room = point_box_distance(points.reshape(n, k * p, 3), boxes).min(-1).values.reshape(n, k, p).min(-1).values
-        room = room - env.proxy_radius
+        room = level_airframe_room(
+            env.target.pose.p[:, None, :].expand(n, 4, 3), headings, grasp.expand(n, 3), boxes, env.proxy_points,
+            env.proxy_radius,
+        )
         best = headings.gather(1, room.argmax(1, keepdim=True))[:, 0]
         return torch.where(room[:, 0] >= TOP_DOWN_ROOM_M, planned, best)
 

@@ -9,6 +9,8 @@ from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs import Pose
 
 from ..checks import FailureCause, consecutive
+from ..control.arm import arm_point_positions_body
+from ..geometry import level_airframe_room
 from ..observations import wrap_angle
 from ..platforms import CONTROL_HZ
 from ..tasks import instruction
@@ -26,13 +28,35 @@ PLATFORM_STABLE_MPS = 0.025  # spec: platform speed below 0.025 m/s ...
 PLATFORM_STABLE_STEPS = 20  # ... for 20 consecutive control steps
 HOVER_ABOVE_GOAL_M = 0.05  # the anchor: the tool centre point a little above its placed position
 SET_DOWN_OBSERVED_S = 1.0  # the task state's set-down time saturates here (the expert releases after 0.45 s)
+# The arm holds the object 0.24-0.48 m ahead of the airframe, so over a goal by a wall the airframe may stand in the
+# wall at the heading the place begins with (two fridge-chain places flew the airframe into it). Where the airframe
+# would stand in the scene at the release (its proxy points' clearance below PLACE_ROOM_M), the place's heading is the
+# one of PLACE_HEADINGS (turns of the heading it begins with) with the most room; the policy reads it as the heading
+# error. Everywhere else the heading is kept, as before.
+PLACE_ROOM_M = 0.0
+PLACE_HEADINGS = 8
+RELEASE_COLUMN_M = (0.0, 0.15)  # the release and the top of the descent onto it, above the release
+
+
+def carried_arm_pose(arm, after_enclosed_pick: torch.Tensor | None, n: int, device) -> torch.Tensor:
+    """`(N, 3)` the arm pose an object is carried and set down in: folded under the airframe (`carry_pose_rad`)
+    after a pick that reached into an enclosure (`after_enclosed_pick`), the top-down pose after a top-down pick, the
+    working pose where the object started in the jaws (a Place start: None). Both carry poses keep the forearm's
+    angle of the grasp, so the object stays upright."""
+    working = torch.tensor(arm.working_pose_rad, dtype=torch.float32, device=device).expand(n, 3)
+    if after_enclosed_pick is None:
+        return working
+    carry = torch.tensor(arm.carry_pose_rad, dtype=torch.float32, device=device)
+    top_down = torch.tensor(arm.top_down_pose_rad, dtype=torch.float32, device=device)
+    return torch.where(after_enclosed_pick[:, None], carry, top_down)
 
 
 class PlaceEvaluator(SkillEvaluator):
     skill = "place"
 
-    def __init__(self, env, where=()):
+    def __init__(self, env, where=(), after_pick=None):
         super().__init__(env, where)
+        self.after_pick = after_pick  # the chain's pick evaluator that grasped the object (None: a Place start)
         self.kinds = self.where or env.setting.place_supports
         self.goal = torch.zeros(self.n, 3, device=self.device)
         self.goal_support = self.zeros(torch.long)
@@ -41,7 +65,8 @@ class PlaceEvaluator(SkillEvaluator):
         self.set_down_streak = self.zeros(torch.long)
         self.unsupported_streak = self.zeros(torch.long)
         self.collision_impulse = self.zeros()
-        self.heading = self.zeros()  # held from the skill's start: the object keeps its place in the jaws
+        self.heading = self.zeros()  # chosen at the skill's start (`place_heading`) and held: the object keeps its
+        # place in the jaws
 
     def sample_goal(self, env_idx: torch.Tensor, avoid_support: torch.Tensor | None = None) -> torch.Tensor:
         """A goal point on a destination support (`(M,)` ok: the layout has one)."""
@@ -52,12 +77,37 @@ class PlaceEvaluator(SkillEvaluator):
         return ok
 
     def begin(self, env_idx):
-        self.heading[env_idx] = self.env.agent.airframe_state().yaw[env_idx]
+        self.heading[env_idx] = self.place_heading(env_idx)
         self.released[env_idx] = False
         self.stable_streak[env_idx] = 0
         self.set_down_streak[env_idx] = 0
         self.unsupported_streak[env_idx] = 0
         self.collision_impulse[env_idx] = 0.0
+
+    def place_heading(self, env_idx: torch.Tensor) -> torch.Tensor:
+        """`(M,)` the heading to place at: the one the skill begins with, except on the arm platform where its airframe
+        would keep less than PLACE_ROOM_M from the scene at the release (or the descent's top) with the object on the
+        goal; there the turn of it with the most room."""
+        env, arm = self.env, self.env.platform.arm
+        yaw = env.agent.airframe_state().yaw[env_idx]
+        if arm is None:  # the gripper holds the object under the airframe's centre: no heading stands it elsewhere
+            return yaw
+        m = len(env_idx)
+        turns = torch.arange(PLACE_HEADINGS, device=self.device) * (2 * math.pi / PLACE_HEADINGS)
+        headings = yaw[:, None] + turns  # (M, K)
+        enclosed = None if self.after_pick is None else self.after_pick.enclosed[env_idx]
+        grasp_body = arm_point_positions_body(carried_arm_pose(arm, enclosed, m, self.device), arm)["grasp"]
+        release = self.goal[env_idx].clone()
+        release[:, 2] += env.target_grasp_point[env_idx, 2]  # the grasp point with the object on the goal
+        boxes = env.obstacle_boxes(env_idx)
+        lift = torch.tensor([0.0, 0.0, 1.0], device=self.device)
+        room = torch.stack([
+            level_airframe_room((release + up * lift)[:, None].expand(m, PLACE_HEADINGS, 3), headings, grasp_body,
+                                boxes, env.proxy_points, env.proxy_radius)
+            for up in RELEASE_COLUMN_M
+        ]).min(0).values
+        best = headings.gather(1, room.argmax(1, keepdim=True))[:, 0]
+        return torch.where(room[:, 0] >= PLACE_ROOM_M, yaw, wrap_angle(best))
 
     def anchor(self, env_idx):
         lift = self.env.target_grasp_point[env_idx, 2] + HOVER_ABOVE_GOAL_M

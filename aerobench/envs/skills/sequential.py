@@ -47,13 +47,14 @@ class AeroSequentialEnv(AeroSkillEnv):
         return self.setting.chain_platform
 
     def _make_evaluators(self):
-        evaluators, carrying = [], False
+        evaluators, carrying, last_pick = [], False, None
         for subtask in self.chain:
             if subtask.skill == "pick":
-                evaluators.append(PickEvaluator(self, subtask.where))
+                last_pick = PickEvaluator(self, subtask.where)
+                evaluators.append(last_pick)
                 carrying = True
             elif subtask.skill == "place":
-                evaluators.append(PlaceEvaluator(self, subtask.where))
+                evaluators.append(PlaceEvaluator(self, subtask.where, after_pick=last_pick))
                 carrying = False
             elif subtask.skill == "nav":
                 evaluators.append(NavEvaluator(self, subtask.where, carrying=carrying))
