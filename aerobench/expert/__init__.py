@@ -15,12 +15,12 @@ from .pick import PickExpert
 from .place import PlaceExpert
 
 
-def _expert_for(env, evaluator, carrying: bool, after_stage: bool, following=None, previous=None, last_pick=None):
+def _expert_for(env, evaluator, carrying: bool, after_stage: bool, following=None, previous=None):
     skill = evaluator.skill
     if skill == "pick":
         return PickExpert(env, evaluator, after_stage=after_stage)
     if skill == "place":
-        return PlaceExpert(env, evaluator, pick=last_pick)
+        return PlaceExpert(env, evaluator)
     if skill == "nav":
         # a held object hangs its grasp height below the tool centre point
         depth = float(env.target_grasp_point[:, 2].max()) if carrying and env.target is not None else 0.0
@@ -37,15 +37,14 @@ class ExpertController:
 
     def __init__(self, env):
         self.env = env
-        carrying, self.experts, last_pick = False, [], None
+        carrying, self.experts = False, []
         for k, evaluator in enumerate(env.evaluators):
             following = env.evaluators[k + 1] if k + 1 < len(env.evaluators) else None
             previous = env.evaluators[k - 1] if k else None
             self.experts.append(
                 _expert_for(env, evaluator, carrying, after_stage=bool(self.experts), following=following,
-                            previous=previous, last_pick=last_pick)
+                            previous=previous)
             )
-            last_pick = evaluator if evaluator.skill == "pick" else last_pick
             carrying = evaluator.skill == "pick" or (carrying and evaluator.skill != "place")
         self.stage = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
 

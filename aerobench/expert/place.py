@@ -54,9 +54,9 @@ class PlacePhase(IntEnum):
 
 
 class PlaceExpert(SkillExpert):
-    def __init__(self, env, evaluator, pick=None):
+    def __init__(self, env, evaluator):
         super().__init__(env, evaluator)
-        self.pick = pick  # the evaluator of the chain's pick that grasped the object (None: a Place start)
+        self.pick = evaluator.after_pick  # the chain's pick evaluator that grasped the object (None: a Place start)
         self.heading = torch.zeros(self.n, device=self.device)
         self.release_point = torch.zeros(self.n, 3, device=self.device)
         self.stop_point = torch.zeros(self.n, 3, device=self.device)
