@@ -153,3 +153,24 @@ def _run_leaderboard(args) -> int:
     print(f"HTML leaderboard: {Path(args.out) / 'index.html'}")
     return 0
 
+
+def add_publish(sub) -> None:
+    p = sub.add_parser("publish", help="copy an eval's results file into a leaderboard folder, with rollout videos of "
+                       "the row's own starts")
+    p.add_argument("eval_dir", help="the row's eval folder (or its results.json)")
+    p.add_argument("--to", required=True, help="the results file to write, e.g. leaderboards/results/TidyHouse_expert.json "
+                   "(videos go to the sibling folder <name>_videos/)")
+    p.add_argument("--videos-from", default=None, help="a second eval of the same policy, checkpoint, setting and "
+                   "--seed made with --video N (default: the row's own videos)")
+    p.set_defaults(func=_run_publish)
+
+
+def _run_publish(args) -> int:
+    from ..eval.publish import publish
+
+    try:
+        published = publish(args.eval_dir, args.to, args.videos_from)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"wrote {args.to} ({len(published.get('videos', []))} videos)")
+    return 0

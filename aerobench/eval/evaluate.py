@@ -91,7 +91,7 @@ def evaluate(
     `out/results.json`; returns the results. With `config.ray`, `on_progress(done, successes, seconds)` hears of
     the episodes of every shard as they finish."""
     out = Path(out)
-    spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0)
+    spec = config.rollout_spec(record_cameras=config.needs_images())
     held_out = held_out_check(config, spec)
     if config.ray is not None:
         _run_on_ray(config, out, on_progress)
@@ -123,7 +123,7 @@ def run_shard(
     config: EvalConfig, folder: Path, shard: tuple[int, int], on_episode: Callable[[EpisodeData, Progress], None] | None = None
 ) -> Path:
     """One shard's episodes into `folder/records.jsonl` (continuing what is there); returns that file."""
-    spec = config.rollout_spec(record_cameras=config.needs_images() or config.video > 0, shard=shard)
+    spec = config.rollout_spec(record_cameras=config.needs_images(), shard=shard)
     root = folder.parent.parent if folder.parent.name == "shards" else folder
     # an episode another shard file of this run holds (e.g. written under an earlier shard layout) is not run again
     elsewhere = {int(r["episode_index"]) for f in run_record_files(root, _run_spec(config, spec))

@@ -51,7 +51,9 @@ class RolloutSpec:
     sim_backend: str = "physx_cpu"
     max_steps: int | None = None  # override the env's episode length
     chained: bool = False  # a chain under the spec's chained evaluation protocol (`rollout.chained`)
-    third_person_episodes: int = 0  # episodes with a plan index below this also record the third-person view (videos)
+    # episodes with a plan index below this also record the third-person view and, in a state-only run, the onboard
+    # RGB views (videos); the other episodes render nothing
+    third_person_episodes: int = 0
     physx_solver: str = field(default_factory=default_physx_solver)  # "pgs" (default) or "tgs" (rows before 2026-11-25)
     rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
@@ -300,6 +302,10 @@ class RolloutRunner:
             for cam in CAMERAS:
                 frame[f"rgb/{cam}"] = obs["sensor_data"][cam]["rgb"].cpu().numpy()
                 frame[f"depth/{cam}"] = obs["sensor_data"][cam]["depth"][..., 0].cpu().numpy().clip(0).astype(np.uint16)
+        elif third_person:  # a video episode of a state-only run: its onboard views are rendered for the video alone
+            images = base.get_sensor_images()
+            for cam in CAMERAS:
+                frame[f"rgb/{cam}"] = images[cam]["rgb"].cpu().numpy()
         if third_person:  # the env's human-render camera, aimed at the drone at reset (not an observation)
             frame[f"rgb/{THIRD_PERSON}"] = base.render_rgb_array().cpu().numpy()
         return frame

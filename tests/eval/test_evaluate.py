@@ -146,15 +146,21 @@ def test_summarize_and_leaderboard_cli(tiny_eval, tmp_path):
     assert '<div class="compare" data-setting="TidyHouse">' in page  # both ran the same starts: comparable
 
 
-def test_video_shows_the_third_person_view_above_the_onboard_cameras(tmp_path):
+def test_video_shows_the_third_person_view_above_the_onboard_cameras(tmp_path, monkeypatch):
     """`--video 1`: episode 0 gets an mp4 with the third-person view (384x384) above the three onboard cameras;
-    episode 1 records no third-person frames and gets no video."""
+    episode 1 records no third-person frames and gets no video. A state-only policy's run stays state-only: the
+    onboard views are rendered for the video's episode alone (once per recorded frame), not for every episode."""
     import imageio.v3 as iio
+    from mani_skill.envs.sapien_env import BaseEnv
 
+    rendered = []
+    original = BaseEnv.get_sensor_images
+    monkeypatch.setattr(BaseEnv, "get_sensor_images", lambda env: rendered.append(env.obs_mode) or original(env))
     config = EvalConfig(policy="random", setting="TidyHouse", skills=("pick",), objects=("sugar_box",),
                         episodes_per_object=2, video=1, max_steps=6)
     results = evaluate(config, tmp_path / "eval", command="test")
     assert results["videos"] == ["videos/episode_000000.mp4"]
+    assert 1 <= len(rendered) <= 6 and set(rendered) == {"state_dict"}  # episode 0's frames only, at most 6 steps
     frames = iio.imread(tmp_path / "eval" / "videos" / "episode_000000.mp4")
     assert frames.shape[1:] == (384 + 128, 384, 3) and frames.shape[0] >= 1
 

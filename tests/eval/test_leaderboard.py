@@ -1,5 +1,6 @@
 import json
 import re
+import shutil
 from pathlib import Path
 
 import pytest
@@ -143,12 +144,17 @@ def _paired_results(tmp_path: Path) -> list[Path]:
 def test_repository_leaderboards_are_generated_from_their_results(tmp_path):
     """leaderboards/ must be exactly what `aerobench leaderboard leaderboards/results/*.json` renders: never typed."""
     root = Path(__file__).resolve().parents[2] / "leaderboards"
-    results = sorted((root / "results").glob("*.json"))
+    copy = tmp_path / "leaderboards"  # the same layout, so the page's links to the rows' videos come out the same
+    shutil.copytree(root / "results", copy / "results")
+    results = sorted((copy / "results").glob("*.json"))
     settings = {json.loads(p.read_text())["setting"] for p in results}
     assert settings >= {"TidyHouse", "PrepareGroceries", "PackageDelivery", "LongHorizonRearrangement"}
-    build_leaderboard(results, tmp_path)
-    for rendered in tmp_path.iterdir():
-        assert rendered.read_text() == (root / rendered.name).read_text(), f"leaderboards/{rendered.name} is stale"
+    build_leaderboard(results, copy)
+    for rendered in copy.iterdir():
+        if rendered.is_file():
+            assert rendered.read_text() == (root / rendered.name).read_text(), f"leaderboards/{rendered.name} is stale"
+    links = re.findall(r'href="([^"]+\.mp4)"', (root / "index.html").read_text())
+    assert links and all((root / link).is_file() for link in links)  # every linked video is committed
 
 
 def test_repository_results_name_paths_relative_to_the_repository():
