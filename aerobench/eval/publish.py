@@ -15,14 +15,10 @@ import re
 import shutil
 from pathlib import Path
 
+from .compare import run_from_results
 from .results import load_results, write_results
 
 VIDEO_NAME = re.compile(r"episode_(\d+)\.mp4$")
-
-
-def _episodes(results: dict) -> dict[int, tuple]:
-    """`{index: (seed, skill, object, outcome)}` from the results' cells."""
-    return {int(i): (seed, c["skill"], c["object"], outcome) for c in results["cells"] for i, seed, outcome in c.get("episodes", ())}
 
 
 def _check_same_policy(row: dict, other: dict, source: Path) -> None:
@@ -42,13 +38,15 @@ def publish(eval_dir: str | Path, dest: str | Path, videos_from: str | Path | No
     eval_dir, dest = Path(eval_dir), Path(dest)
     if dest.suffix != ".json":
         raise ValueError(f"--to must name a .json results file (e.g. leaderboards/results/TidyHouse_expert.json), got {dest}")
-    results = load_results(eval_dir / "results.json" if eval_dir.is_dir() else eval_dir)
+    row_file = eval_dir / "results.json" if eval_dir.is_dir() else eval_dir
+    results = load_results(row_file)
     source = Path(videos_from) if videos_from is not None else eval_dir
     source_dir = source if source.is_dir() else source.parent
     other = results if videos_from is None else load_results(source_dir / "results.json")
     if videos_from is not None:
         _check_same_policy(results, other, source_dir)
-    row_episodes, video_episodes = _episodes(results), _episodes(other)
+    row_episodes = run_from_results(row_file, results).episodes  # {index: (seed, skill, object, outcome)}
+    video_episodes = run_from_results(row_file if videos_from is None else source_dir / "results.json", other).episodes
     videos = []
     for rel in other.get("videos", []):
         match = VIDEO_NAME.search(rel)
@@ -60,17 +58,20 @@ def publish(eval_dir: str | Path, dest: str | Path, videos_from: str | Path | No
                              f"{index} ({row_episodes.get(index)}): the same start must end the same way in both runs")
         videos.append((index, source_dir / rel))
     folder = dest.with_name(dest.stem + "_videos")
-    if folder.exists():
-        shutil.rmtree(folder)
+    staging = folder.with_name(folder.name + ".tmp")  # the videos may be the published row's own: copy, then swap
+    shutil.rmtree(staging, ignore_errors=True)
     published = dict(results)
     if videos:
-        folder.mkdir(parents=True)
+        staging.mkdir(parents=True)
         for index, path in sorted(videos):
-            shutil.copyfile(path, folder / f"episode_{index:06d}.mp4")
+            shutil.copyfile(path, staging / f"episode_{index:06d}.mp4")
         published["videos"] = [f"{folder.name}/episode_{index:06d}.mp4" for index, _ in sorted(videos)]
         if videos_from is not None:
             published["provenance"] = {**results["provenance"], "videos_command": other["provenance"].get("command")}
     else:
         published.pop("videos", None)
+    shutil.rmtree(folder, ignore_errors=True)
+    if videos:
+        staging.rename(folder)
     write_results(dest, published)
     return published

@@ -40,6 +40,9 @@ def test_a_row_gets_the_videos_of_a_small_eval_of_its_own_starts(tmp_path):
     build_leaderboard([dest], tmp_path / "boards")
     page = (tmp_path / "boards" / "index.html").read_text()
     assert 'href="results/TidyHouse_expert_videos/episode_000000.mp4"' in page  # linked from the page's folder
+    publish(dest, dest)  # a published row published again in place keeps its videos
+    assert (dest.parent / "TidyHouse_expert_videos" / "episode_000001.mp4").read_bytes() == b"mp4 of episode 1"
+    assert load_results(dest)["videos"] == published["videos"]
     # publishing again without videos removes the old ones: nothing stale is left beside the row
     publish(row, dest)
     assert "videos" not in load_results(dest) and not (dest.parent / "TidyHouse_expert_videos").exists()
