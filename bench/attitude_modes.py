@@ -27,7 +27,7 @@ import transforms3d
 
 from aerobench.envs.agents.airframe import composite_mass_properties
 from aerobench.envs.objects import OBJECTS, ObjectSpec
-from aerobench.envs.platforms import GRIPPER_PLATFORM, Component, PlatformSpec
+from aerobench.envs.platforms import GRIPPER_PALM_Z_M, GRIPPER_PLATFORM, Component, PlatformSpec
 
 ABLATION_JSON = Path("docs/results/payload_ablation/payload_ablation.json")
 BAND_HZ = (0.5, 5.0)  # below: the transport's own manoeuvres; above: nothing of the loop's
@@ -42,7 +42,7 @@ def rigid_parts(platform: PlatformSpec, obj: ObjectSpec | None) -> tuple[Compone
     """The airframe's components, the two fingers (their own links, rigid while closed) and a held object whose
     centre of mass sits where a planned grasp puts it: `grasp_point_m` of the object at the tool centre point."""
     g, tcp = platform.gripper, np.asarray(platform.grasp_point_m)
-    finger_z = tcp[2] - 0.02 + g.finger_length_m / 2  # tips 2 cm below the tool centre point
+    finger_z = GRIPPER_PALM_Z_M - g.finger_length_m / 2  # the fingers hang from the palm
     parts = list(platform.airframe_components) + [
         Component(f"finger_{s}", g.finger_mass_kg, (0.0, s * 0.02, finger_z)) for s in (-1, 1)
     ]
