@@ -54,5 +54,6 @@ def add_ray_options(p, shards_name: str | None = None) -> None:
                         "(or auto), the cluster there (ray start --head); the output folder must be shared by the workers")
     if shards_name:
         p.add_argument(f"--{shards_name}", type=int, default=None,
-                       help="with --ray: how many shards (default: one per CPU of the Ray runtime)")
+                       help="with --ray: how many shards (default: one per CPU of the Ray runtime; with --sim-backend "
+                            "physx_cuda one per GPU, each shard given its own)")
 

@@ -197,13 +197,14 @@ def _shard_task(config: EvalConfig, folder: str, shard: tuple[int, int], progres
 
 
 def _run_on_ray(config: EvalConfig, out: Path, on_progress) -> list[Path]:
-    from ..rollout.ray_shards import connect, run_shards
+    from ..rollout.ray_shards import connect, default_shards, run_shards, shard_gpus
 
-    cpus = connect(config.ray)
-    k = config.workers if config.workers > 1 else cpus
+    connect(config.ray)
+    k = config.workers if config.workers > 1 else default_shards(config.sim_backend)
     out.mkdir(parents=True, exist_ok=True)
     folders = [out / "shards" / f"{i}-of-{k}" for i in range(k)]
-    files = run_shards(_shard_task, [(config, str(f), (i, k)) for i, f in enumerate(folders)], on_progress=on_progress)
+    files = run_shards(_shard_task, [(config, str(f), (i, k)) for i, f in enumerate(folders)], on_progress=on_progress,
+                       num_gpus=shard_gpus(config.sim_backend))
     return [Path(f) for f in files]
 
 

@@ -63,13 +63,13 @@ def generate_on_ray(
     """Every shard of `spec` as a Ray task (default: one per CPU Ray offers), then one merge. Re-running the same
     command continues: each shard skips the episodes already committed. Returns the merged dataset's root (None
     if no episode was kept)."""
-    from ..rollout.ray_shards import connect, run_shards
+    from ..rollout.ray_shards import connect, default_shards, run_shards, shard_gpus
 
-    cpus = connect(address)
-    k = shards or max(1, min(cpus, spec.episodes))
+    connect(address)
+    k = shards or max(1, min(default_shards(spec.sim_backend), spec.episodes))
     if k < 1:
         raise ValueError(f"--shards must be a positive integer, got {k}")
     open_sink(replace(spec, shard=(0, k)), out, keep, part_size)  # refuse a folder of another generation up front
     run_shards(_generate_shard, [(replace(spec, shard=(i, k)), str(out), keep, part_size) for i in range(k)],
-               on_progress=on_progress)
+               on_progress=on_progress, num_gpus=shard_gpus(spec.sim_backend))
     return merge(out)

@@ -8,7 +8,8 @@ no finished episode is lost or written twice. The driver shows one progress bar 
 report to, then merges the shards.
 
 `connect(None)` starts a local Ray runtime with the machine's cores; `connect("HOST:PORT")` (or "auto") joins a
-cluster started with `ray start --head`.
+cluster started with `ray start --head`. A physx_cuda shard is one env batch on one GPU: its task asks Ray for that GPU
+(Ray sets the worker's CUDA_VISIBLE_DEVICES), and a run has one shard per GPU the cluster offers.
 """
 
 from __future__ import annotations
@@ -59,6 +60,27 @@ def connect(address: str | None = None, num_cpus: int | None = None) -> int:
     return int(ray.cluster_resources().get("CPU", 1))
 
 
+def shard_gpus(sim_backend: str) -> int:
+    """GPUs one shard's task asks Ray for: a physx_cuda shard holds its whole env batch on one GPU."""
+    return 1 if sim_backend == "physx_cuda" else 0
+
+
+def default_shards(sim_backend: str) -> int:
+    """One shard per CPU the Ray runtime offers (physx_cpu: one env per process), or per GPU (physx_cuda)."""
+    import ray
+
+    resources = ray.cluster_resources()
+    return max(1, int(resources.get("GPU" if shard_gpus(sim_backend) else "CPU", 1)))
+
+
+def _check_gpus(num_gpus: int) -> None:
+    import ray
+
+    if num_gpus and ray.cluster_resources().get("GPU", 0) < num_gpus:
+        raise ValueError("--sim-backend physx_cuda shards need a GPU each and this Ray runtime offers none: run on a GPU "
+                         "node (`ray start --head --num-gpus N` there, then --ray HOST:PORT), or use physx_cpu")
+
+
 def _progress_actor():
     import ray
 
@@ -93,15 +115,19 @@ def run_shards(
     shard_args: Sequence[tuple],
     on_progress: Callable[[int, int, float], None] | None = None,
     poll_s: float = 1.0,
+    num_gpus: int = 0,
 ) -> list[Any]:
-    """Run `task(*args, progress)` for each args tuple as a Ray task (one CPU, retried when its worker dies) and
-    return their results in order. `on_progress(episodes_done, successes, seconds)` is called while they run.
-    A task's own exception (bad input, a broken checkpoint) is not retried: it is raised here."""
+    """Run `task(*args, progress)` for each args tuple as a Ray task (one CPU and `num_gpus` GPUs, retried when its
+    worker dies) and return their results in order. `on_progress(episodes_done, successes, seconds)` is called while
+    they run. A task's own exception (bad input, a broken checkpoint) is not retried: it is raised here; GPU tasks on
+    a runtime without GPUs are refused up front (Ray would wait for one forever)."""
     import ray
 
+    _check_gpus(num_gpus)
     progress = _progress_actor()
     # max_calls=1: a shard's worker exits when it is done, releasing its env (and every run starts from the same state)
-    remote = ray.remote(num_cpus=1, max_retries=TASK_RETRIES, retry_exceptions=False, max_calls=1)(task)
+    remote = ray.remote(num_cpus=1, num_gpus=num_gpus, max_retries=TASK_RETRIES, retry_exceptions=False,
+                        max_calls=1)(task)
     refs = [remote.remote(*args, progress) for args in shard_args]
     pending, start = list(refs), time.monotonic()
     try:

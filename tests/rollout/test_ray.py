@@ -97,3 +97,41 @@ def test_ray_address_without_a_cluster_is_one_line(tmp_path):
         "aerobench generate: error: no Ray cluster at 127.0.0.1:1: start one there with `ray start --head --port 1`, "
         "or pass --ray without an address for a local runtime"]
     assert not (tmp_path / "x").exists()
+
+
+GPU_SHARDS = """
+import json, os, sys
+import ray
+from aerobench.rollout.ray_shards import default_shards, run_shards, shard_gpus
+
+def task(index, progress):
+    return index, os.environ.get("CUDA_VISIBLE_DEVICES"), [str(g) for g in ray.get_gpu_ids()]
+
+ray.init(num_cpus=2, num_gpus=int(sys.argv[1]), include_dashboard=False, log_to_driver=False)
+try:
+    shards = default_shards("physx_cuda")
+    print(json.dumps({"shards": shards, "cpu_shards": default_shards("physx_cpu"),
+                      "results": run_shards(task, [(i,) for i in range(shards)], num_gpus=shard_gpus("physx_cuda"))}))
+except ValueError as e:
+    print("error:", e)
+"""
+
+
+def _gpu_shards(declared_gpus: int) -> str:
+    """Ray scheduling of physx_cuda shards on a local runtime that declares `declared_gpus` GPUs (Ray schedules by the
+    declared resource and sets CUDA_VISIBLE_DEVICES; no GPU is touched, so this runs on a CPU machine)."""
+    r = subprocess.run([sys.executable, "-c", GPU_SHARDS, str(declared_gpus)], capture_output=True, text=True,
+                       timeout=300, env=ENV)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return r.stdout.strip().splitlines()[-1]
+
+
+def test_physx_cuda_shards_get_one_gpu_each_and_a_cluster_without_gpus_is_one_line():
+    out = json.loads(_gpu_shards(2))
+    assert out["shards"] == 2 and out["cpu_shards"] == 2  # one shard per GPU; per CPU on physx_cpu
+    devices = sorted(visible for _, visible, _ in out["results"])
+    assert devices == ["0", "1"], out  # each shard sees only its own GPU
+    assert all(ids == [visible] for _, visible, ids in out["results"])
+    assert _gpu_shards(0) == ("error: --sim-backend physx_cuda shards need a GPU each and this Ray runtime offers none: "
+                              "run on a GPU node (`ray start --head --num-gpus N` there, then --ray HOST:PORT), or use "
+                              "physx_cpu")
