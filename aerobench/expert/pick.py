@@ -8,7 +8,10 @@ not close within its time, or is lost while lifting, reopens and retries from th
 `MAX_RETRIES` times).
 A pick that follows another chain stage (e.g. after opening the fridge, the fingers still at the door's handle) first
 backs away from where that stage left it and follows a planned route to a staging point before the pre-grasp point
-(ROUTE), because the straight line from a handle into the fridge sweeps the fingers across the open door.
+(ROUTE), because the straight line from a handle into the fridge sweeps the fingers across the open door. A pick
+that starts an episode flies straight to the pre-grasp point unless that line would take the drone into the scene
+(a start behind a counter's upstand, the hanging fingers below its top edge); then it follows a planned route too,
+from where it is.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 
+import numpy as np
 import torch
 
 from ..envs.control.arm import arm_point_positions_body
@@ -24,7 +28,7 @@ from ..envs.platforms import MAX_SPEED_MPS
 from ..envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M
 from .base import SkillExpert
 from .motion import TURN_TOLERANCE_RAD, wrap_angle
-from .planner import planner_for, route_at_some_heading
+from .planner import MIN_VERTICAL_CLEARANCE_M, START_SKIP_M, planner_for, route_at_some_heading
 from .route import RouteFollower
 
 APPROACH_SPEED_MPS = 0.5
@@ -61,6 +65,10 @@ STAGING_M = 0.30  # ... and its route ends this far before the pre-grasp point a
 # it) a nearer one is tried; with no route at all the expert flew straight and hit the wall.
 STAGING_TRIES_M = (STAGING_M, STAGING_M / 2, 0.0)
 ROUTE_SPEED_MPS = 0.3
+APPROACH_FIRST_DROP_M = 0.10  # a first-stage approach that descends drops about this far before it moves across
+# ... and a first-stage pick whose straight approach is blocked climbs this far before it turns to the grasp heading:
+# a fast turn in place takes thrust from the rotors and sags the drone (10 cm beside a counter's upstand at the start)
+START_RISE_M = 0.20
 # after backing off, the pick turns to the grasp heading in place (within TURN_TOLERANCE_RAD) before its route
 ROUTE_ARRIVED_M = 0.05
 FINE_GAIN = 1.2  # 1/s: higher gains make the position loop ring against the velocity loop lag (2.5 diverges)
@@ -84,7 +92,8 @@ class PickExpert(SkillExpert):
     def __init__(self, env, evaluator, after_stage: bool = False):
         super().__init__(env, evaluator)
         self.after_stage = after_stage
-        self.route = RouteFollower(self.n, self.device) if after_stage else None
+        self.route = RouteFollower(self.n, self.device)
+        self.routed = after_stage  # whether any env may follow a route (the first-stage pick: only a blocked start)
         self.back_yaw = torch.zeros(self.n, device=self.device)  # the heading kept while backing off
         self.turned = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # turned to the grasp heading after it
         self.align_tolerance = (env.grasp_side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
@@ -100,26 +109,63 @@ class PickExpert(SkillExpert):
         self.deepest[env_idx] = self._along(self.grasp_point())[env_idx] + ENCLOSED_OVERREACH_M
         if self.after_stage:
             self._plan_route(env_idx)
+            return
+        blocked = [i for i in env_idx.tolist() if self._straight_approach_blocked(i)]
+        if blocked:
+            self.routed = True
+            rows = torch.tensor(blocked, device=self.device)
+            state, up = self.state(), torch.zeros(len(blocked), 3, device=self.device)
+            for row, i in enumerate(blocked):  # climb where there is room above (a shelf overhead: turn where it is)
+                start = state.position[i].cpu().numpy()
+                above = start + np.array([0.0, 0.0, START_RISE_M])
+                # from START_SKIP_M up: the hanging fingers may start within a few cm of what blocks the approach
+                if planner_for(self.env, i, heading=float(state.yaw[i])).segment_free(start, above, START_SKIP_M,
+                                                                                      MIN_VERTICAL_CLEARANCE_M):
+                    up[row, 2] = START_RISE_M
+            self._plan_route(rows, first_move=up)
 
-    def _plan_route(self, env_idx: torch.Tensor) -> None:
-        """Airframe waypoints: straight back along the current heading, then the planner's route to a staging point
+    def _tcp_offset_at_heading(self) -> torch.Tensor:
+        """`(N, 3)` the tool centre point's offset from the airframe once turned to the grasp heading (with the arm,
+        in the pose it picks in)."""
+        if self.has_arm:
+            body = arm_point_positions_body(self.pick_arm_pose(self.evaluator), self.platform.arm)["grasp"]
+            return heading_frame(body, -self.heading)
+        state = self.state()
+        return heading_frame(self.tcp() - state.position, state.yaw - self.heading)
+
+    def _straight_approach_blocked(self, i: int) -> bool:
+        """Whether APPROACH's straight flight from env `i`'s start to its pre-grasp point would take the drone (at
+        its start heading or at the grasp heading) within `MIN_VERTICAL_CLEARANCE_M` of the scene. The flight is not
+        quite straight where it descends: thrust drops the drone at once while tilting into the horizontal motion
+        takes a few steps (about 10 cm down before it has moved 3 cm across), so that first drop is checked too."""
+        state = self.state()
+        start = state.position[i].cpu().numpy()
+        goal = (self.pre_grasp(self.grasp_point()) - self._tcp_offset_at_heading())[i].cpu().numpy()
+        drop = start.copy()
+        drop[2] -= min(APPROACH_FIRST_DROP_M, max(0.0, float(start[2] - goal[2])))
+        arm_q = self.pick_arm_pose(self.evaluator)[i] if self.has_arm else None
+        for h in (state.yaw[i], self.heading[i]):
+            planner = planner_for(self.env, i, heading=float(h), arm_q=arm_q)
+            if not (planner.segment_free(start, goal, START_SKIP_M, MIN_VERTICAL_CLEARANCE_M)
+                    and planner.segment_free(start, drop, 0.0, MIN_VERTICAL_CLEARANCE_M)):
+                return True
+        return False
+
+    def _plan_route(self, env_idx: torch.Tensor, first_move: torch.Tensor | None = None) -> None:
+        """Airframe waypoints: a first move keeping the current heading (`first_move` `(M, 3)`; default straight back
+        `BACK_OFF_M` along it), then, turned to the grasp heading, the planner's route to a staging point
         `STAGING_M` (or the first of `STAGING_TRIES_M` with a route) before the pre-grasp point along the grasp
         heading (APPROACH flies the rest straight)."""
         state = self.state()
-        # the tool centre point's offset from the airframe once turned to the grasp heading (and, with the arm, in
-        # the pose it picks in)
-        if self.has_arm:
-            body = arm_point_positions_body(self.pick_arm_pose(self.evaluator), self.platform.arm)["grasp"]
-            offset = heading_frame(body, -self.heading)
-        else:
-            offset = heading_frame(self.tcp() - state.position, state.yaw - self.heading)
         along = self._forward()
-        at_pre_grasp = self.pre_grasp(self.grasp_point()) - offset
-        back = torch.stack([torch.cos(state.yaw), torch.sin(state.yaw), torch.zeros_like(state.yaw)], -1) * BACK_OFF_M
+        at_pre_grasp = self.pre_grasp(self.grasp_point()) - self._tcp_offset_at_heading()
+        if first_move is None:
+            yaw = state.yaw[env_idx]
+            first_move = -torch.stack([torch.cos(yaw), torch.sin(yaw), torch.zeros_like(yaw)], -1) * BACK_OFF_M
         self.back_yaw[env_idx] = state.yaw[env_idx]
         self.turned[env_idx] = False
-        for i in env_idx.tolist():
-            start = (state.position[i] - back[i]).cpu().numpy()
+        for row, i in enumerate(env_idx.tolist()):
+            start = (state.position[i] + first_move[row]).cpu().numpy()
             arm_q = self.pick_arm_pose(self.evaluator)[i] if self.has_arm else None
             heading = float(self.heading[i])
             stagings = [(at_pre_grasp[i] - distance * along[i]).cpu().numpy() for distance in STAGING_TRIES_M]
@@ -188,7 +234,7 @@ class PickExpert(SkillExpert):
 
         # transitions
         routing = self.in_phase(P.ROUTE)
-        if self.after_stage:
+        if self.routed:
             waypoint, last = self.route.target(state.position)
             self.goto(P.ROUTE, last & (torch.linalg.norm(waypoint - state.position, dim=-1) < ROUTE_ARRIVED_M), P.APPROACH)
         at_pre = torch.linalg.norm(tcp - pre, dim=-1) < 0.04
@@ -253,7 +299,7 @@ class PickExpert(SkillExpert):
         fine = (phase == P.ALIGN) | (phase == P.DESCEND) | (phase == P.CLOSE)
         gain = torch.where(fine, FINE_GAIN, 1.2)
         tracked, yaw = None, self.heading
-        if self.after_stage:  # on the route the airframe is driven to the waypoints
+        if self.routed:  # on the route the airframe is driven to the waypoints
             target = torch.where(routing[:, None], waypoint, target)
             max_speed = torch.where(routing, torch.full_like(max_speed, ROUTE_SPEED_MPS), max_speed)
             tracked = torch.where(routing[:, None], state.position, tcp)
