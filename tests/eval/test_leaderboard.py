@@ -64,13 +64,14 @@ def test_refuses_other_versions_and_duplicates(spec_results, tmp_path):
         build_leaderboard([not_results], tmp_path / "z")
 
 
-def _chromium() -> str | None:
+def _chromium() -> str:
     import shutil
 
-    return shutil.which("chromium") or shutil.which("chromium-browser")
+    found = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert found, "no chromium on PATH: run `bash scripts/setup_browser.sh` (make test does)"
+    return found
 
 
-@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (make test installs Debian's chromium package)")
 def test_training_runs_sharing_a_label_pool_into_one_row(tmp_path):
     """Three training seeds of one recipe (one --label, three checkpoints): one row over all their episodes, with
     each run's Mean S.R., their mean and a bootstrap interval over runs."""
