@@ -110,19 +110,10 @@ class PickExpert(SkillExpert):
         if self.after_stage:
             self._plan_route(env_idx)
             return
-        blocked = [i for i in env_idx.tolist() if self._straight_approach_blocked(i)]
+        blocked, rise = self._blocked_starts(env_idx)
         if blocked:
             self.routed = True
-            rows = torch.tensor(blocked, device=self.device)
-            state, up = self.state(), torch.zeros(len(blocked), 3, device=self.device)
-            for row, i in enumerate(blocked):  # climb where there is room above (a shelf overhead: turn where it is)
-                start = state.position[i].cpu().numpy()
-                above = start + np.array([0.0, 0.0, START_RISE_M])
-                # from START_SKIP_M up: the hanging fingers may start within a few cm of what blocks the approach
-                if planner_for(self.env, i, heading=float(state.yaw[i])).segment_free(start, above, START_SKIP_M,
-                                                                                      MIN_VERTICAL_CLEARANCE_M):
-                    up[row, 2] = START_RISE_M
-            self._plan_route(rows, first_move=up)
+            self._plan_route(torch.tensor(blocked, device=self.device), first_move=rise)
 
     def _tcp_offset_at_heading(self) -> torch.Tensor:
         """`(N, 3)` the tool centre point's offset from the airframe once turned to the grasp heading (with the arm,
@@ -133,23 +124,34 @@ class PickExpert(SkillExpert):
         state = self.state()
         return heading_frame(self.tcp() - state.position, state.yaw - self.heading)
 
-    def _straight_approach_blocked(self, i: int) -> bool:
-        """Whether APPROACH's straight flight from env `i`'s start to its pre-grasp point would take the drone (at
-        its start heading or at the grasp heading) within `MIN_VERTICAL_CLEARANCE_M` of the scene. The flight is not
-        quite straight where it descends: thrust drops the drone at once while tilting into the horizontal motion
-        takes a few steps (about 10 cm down before it has moved 3 cm across), so that first drop is checked too."""
+    def _blocked_starts(self, env_idx: torch.Tensor) -> tuple[list[int], torch.Tensor]:
+        """The envs of `env_idx` whose straight flight from the start to the pre-grasp point (at the start heading or
+        at the grasp heading) would come within `MIN_VERTICAL_CLEARANCE_M` of the scene, and each one's first move
+        `(M, 3)`: `START_RISE_M` up where there is room above (a shelf overhead: none, it turns where it is). The
+        flight is not quite straight where it descends: thrust drops the drone at once while tilting into the
+        horizontal motion takes a few steps (about 10 cm down before it has moved 3 cm across), so that first drop is
+        checked too."""
         state = self.state()
-        start = state.position[i].cpu().numpy()
-        goal = (self.pre_grasp(self.grasp_point()) - self._tcp_offset_at_heading())[i].cpu().numpy()
-        drop = start.copy()
-        drop[2] -= min(APPROACH_FIRST_DROP_M, max(0.0, float(start[2] - goal[2])))
-        arm_q = self.pick_arm_pose(self.evaluator)[i] if self.has_arm else None
-        for h in (state.yaw[i], self.heading[i]):
-            planner = planner_for(self.env, i, heading=float(h), arm_q=arm_q)
-            if not (planner.segment_free(start, goal, START_SKIP_M, MIN_VERTICAL_CLEARANCE_M)
-                    and planner.segment_free(start, drop, 0.0, MIN_VERTICAL_CLEARANCE_M)):
-                return True
-        return False
+        positions = state.position.cpu().numpy()
+        goals = (self.pre_grasp(self.grasp_point()) - self._tcp_offset_at_heading()).cpu().numpy()
+        arm_q = self.pick_arm_pose(self.evaluator) if self.has_arm else None
+        blocked, rises = [], []
+        for i in env_idx.tolist():
+            start, goal = positions[i], goals[i]
+            drop = start.copy()
+            drop[2] -= min(APPROACH_FIRST_DROP_M, max(0.0, float(start[2] - goal[2])))
+            if all(planner.segment_free(start, goal, START_SKIP_M, MIN_VERTICAL_CLEARANCE_M)
+                   and planner.segment_free(start, drop, 0.0, MIN_VERTICAL_CLEARANCE_M)
+                   for planner in (planner_for(self.env, i, heading=float(h), arm_q=None if arm_q is None else arm_q[i])
+                                   for h in (state.yaw[i], self.heading[i]))):
+                continue
+            above = start + np.array([0.0, 0.0, START_RISE_M])
+            # checked from START_SKIP_M up: the hanging fingers may start within a few cm of what blocks the approach
+            room = planner_for(self.env, i, heading=float(state.yaw[i])).segment_free(start, above, START_SKIP_M,
+                                                                                      MIN_VERTICAL_CLEARANCE_M)
+            blocked.append(i)
+            rises.append([0.0, 0.0, START_RISE_M if room else 0.0])
+        return blocked, torch.tensor(rises, dtype=torch.float32, device=self.device).reshape(-1, 3)
 
     def _plan_route(self, env_idx: torch.Tensor, first_move: torch.Tensor | None = None) -> None:
         """Airframe waypoints: a first move keeping the current heading (`first_move` `(M, 3)`; default straight back
