@@ -37,16 +37,16 @@ def _check_reachable(address: str) -> None:
                          f"--ray without an address for a local runtime") from None
 
 
-def connect(address: str | None = None, num_cpus: int | None = None) -> int:
-    """Start (address None / "local") or join a Ray runtime; returns the CPUs it offers. A one-line ValueError when
-    there is no cluster at `address`."""
+def connect(address: str | None = None, num_cpus: int | None = None) -> None:
+    """Start (address None / "local") or join a Ray runtime (`default_shards` says how many shards it holds). A
+    one-line ValueError when there is no cluster at `address`."""
     import ray
 
     env_vars = {k: v for k, v in os.environ.items() if k.startswith(FORWARDED_ENV_PREFIXES)}
     kwargs: dict[str, Any] = dict(runtime_env={"env_vars": env_vars}, log_to_driver=False, ignore_reinit_error=True,
                                   configure_logging=False)
     if ray.is_initialized():
-        return int(ray.cluster_resources().get("CPU", 1))
+        return
     if address in (None, LOCAL):
         ray.init(num_cpus=num_cpus or os.cpu_count(), include_dashboard=False, **kwargs)
     else:
@@ -57,7 +57,6 @@ def connect(address: str | None = None, num_cpus: int | None = None) -> int:
         except (ConnectionError, RuntimeError) as e:
             raise ValueError(f"no Ray cluster at {address} ({str(e).splitlines()[0]}): start one with "
                              f"`ray start --head`, or pass --ray without an address for a local runtime") from None
-    return int(ray.cluster_resources().get("CPU", 1))
 
 
 def shard_gpus(sim_backend: str) -> int:
