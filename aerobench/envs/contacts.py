@@ -42,8 +42,7 @@ class ContactReader:
         n = scene.num_envs
         self._zeros2 = torch.zeros(n, 2, 3, device=scene.device)
         self._zeros1 = torch.zeros(n, 3, device=scene.device)
-        self._ids: tuple[dict[int, int], dict[int, int], int, set[int]] | None = None
-        self._relevant: set[int] | None = None
+        self._ids: tuple[dict, dict, object, set, set] | None = None
 
     def read(self) -> ContactReadout:
         if self.scene.gpu_sim_enabled:
@@ -60,40 +59,42 @@ class ContactReader:
             on_handle = on_handle + torch.stack([self.scene.get_pairwise_contact_forces(f, handle) for f in self.fingers], 1)
         return ContactReadout(links, on_target, target_net, on_handle)
 
-    def _entity_ids(self) -> tuple[dict[int, int], dict[int, int], int, set[int]]:
-        # Entities are matched by their per-scene id (pybind returns a fresh wrapper for each access); the reader
-        # lives as long as its scene, so the ids are looked up once.
+    def _bodies(self) -> tuple[dict, dict, object, set, set]:
+        # PhysX bodies by their Python wrapper: pybind returns the one wrapper of a live C++ object, and ManiSkill
+        # holds each body's, so a contact's `bodies` are these very objects and an identity lookup finds them (a
+        # lookup through `body.entity.per_scene_id` costs two more wrappers per body). Found once per scene.
         if self._ids is None:
-            def eid(obj) -> int:
-                return obj._bodies[0].entity.per_scene_id
+            def body(obj):
+                return obj._bodies[0]
 
-            self._ids = ({eid(self.robot.links_map[n]): i for i, n in enumerate(self.link_names)},
-                         {eid(f): k for k, f in enumerate(self.fingers)},
-                         eid(self.target) if self.target is not None else -1,
-                         {eid(h) for h in self.handles})
+            link_of = {body(self.robot.links_map[n]): i for i, n in enumerate(self.link_names)}
+            finger_of = {body(f): k for k, f in enumerate(self.fingers)}
+            target = body(self.target) if self.target is not None else None
+            handles = {body(h) for h in self.handles}
+            # every body a readout sums forces on (the links, the target): contacts between two others are skipped
+            relevant = set(link_of) | set(finger_of) | ({target} if target is not None else set())
+            self._ids = (link_of, finger_of, target, handles, relevant)
         return self._ids
 
     def _read_cpu(self) -> ContactReadout:
-        link_of, finger_of, target_id, handle_ids = self._entity_ids()
-        relevant = self._relevant_ids()
+        link_of, finger_of, target, handles, relevant = self._bodies()
         links = np.zeros((len(self.link_names), 3))
         on_target, on_handle, target_net = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(3)
         for contact in self.scene.px.get_contacts():
             body0, body1 = contact.bodies
-            ids = (body0.entity.per_scene_id, body1.entity.per_scene_id)
-            if ids[0] not in relevant and ids[1] not in relevant:  # e.g. a distractor on its support
+            if body0 not in relevant and body1 not in relevant:  # e.g. a distractor on its support
                 continue
             # acts on bodies[0]; -impulse on bodies[1]. A plain sum: np.sum of a short list costs more than its adds
             impulse = sum(p.impulse for p in contact.points)
-            for me, other, sign in ((ids[0], ids[1], 1.0), (ids[1], ids[0], -1.0)):
+            for me, other, sign in ((body0, body1, 1.0), (body1, body0, -1.0)):
                 if me in link_of:
                     links[link_of[me]] += sign * impulse
                 if me in finger_of:
-                    if other == target_id:
+                    if other is target:
                         on_target[finger_of[me]] += sign * impulse
-                    if other in handle_ids:
+                    if other in handles:
                         on_handle[finger_of[me]] += sign * impulse
-                if me == target_id:
+                if me is target:
                     target_net += sign * impulse
         dt = self.scene.timestep
 
@@ -101,10 +102,3 @@ class ContactReader:
             return torch.as_tensor(a / dt, dtype=torch.float32)[None]
 
         return ContactReadout(t(links), t(on_target), t(target_net), t(on_handle))
-
-    def _relevant_ids(self) -> set[int]:
-        """Every entity a readout sums forces on (the links, the target): contacts between two others are skipped."""
-        if self._relevant is None:
-            link_of, finger_of, target_id, _ = self._entity_ids()
-            self._relevant = set(link_of) | set(finger_of) | ({target_id} if target_id >= 0 else set())
-        return self._relevant

@@ -23,6 +23,7 @@ from ..control.so3 import quat_rotate
 from ..control.virtual_joints import VIRTUAL_JOINT_NAMES, AirframeState, airframe_state_from_joints
 from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
+from ..poses import pose_of
 from .body_controller import AerialBodyController, AerialBodyControllerConfig
 
 # PhysX needs a mass on every link; the virtual links carry a negligible one (0.02% of the airframe in total) and
@@ -246,7 +247,7 @@ class AerialAgent(BaseAgent):
                 f"non-finite action (NaN or inf) for env index {envs[0] if len(envs) == 1 else envs}: "
                 f"{batched[bad][0].tolist()}; send finite commands in [-1, 1]"
             )
-        super().set_action(action)
+        self.controller.set_action(action)  # what BaseAgent.set_action does after its NaN-only check, checked above
 
     def reset(self, init_qpos=None):
         super().reset(init_qpos)
@@ -304,7 +305,7 @@ class AerialAgent(BaseAgent):
     @property
     def tcp_pose(self) -> Pose:
         """Tool centre point (grasp point): the link the fingers ride on, offset to the point between the pads."""
-        link = self.grasp_link.pose  # the offset is a pure translation: rotate it, keep the link's orientation
+        link = pose_of(self.grasp_link)  # the offset is a pure translation: rotate it, keep the link's orientation
         offset = torch.as_tensor(self._tcp_offset_in_grasp_link, dtype=link.p.dtype, device=link.p.device)
         return Pose.create_from_pq(p=link.p + quat_rotate(link.q, offset), q=link.q)
 

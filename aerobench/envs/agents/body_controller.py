@@ -51,6 +51,9 @@ class AerialBodyController(BaseController):
         self.leading_joints = idx == list(range(len(idx)))
         self._joints = slice(idx[0], idx[-1] + 1) if idx == list(range(idx[0], idx[-1] + 1)) else self.active_joint_indices
         self._qf = None
+        # physx_cpu holds one env: the PhysX articulation itself is read and written every physics step (ManiSkill's
+        # batched wrapper around it costs several microseconds per call, a sizeable share of a 240 Hz step)
+        self._cpu_articulation = None if self.scene.gpu_sim_enabled else self.articulation._objs[0]
         self.telemetry: list[dict[str, torch.Tensor]] | None = None  # set to [] to record every physics step
 
     # ----------------------------------------------------------------------------------------------------------------
@@ -99,7 +102,11 @@ class AerialBodyController(BaseController):
         if self.scene.gpu_sim_enabled:  # ManiSkill fetches once per control step; the loop needs every physics step
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
-        q_all, qd_all = self.articulation.get_qpos(), self.articulation.get_qvel()
+        cpu = self._cpu_articulation
+        if cpu is not None:
+            q_all, qd_all = torch.from_numpy(cpu.get_qpos())[None], torch.from_numpy(cpu.get_qvel())[None]
+        else:
+            q_all, qd_all = self.articulation.get_qpos(), self.articulation.get_qvel()
         m = self.memory
         tensors = [q_all, qd_all, self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w,
                    self._needs_yaw_sync]
@@ -109,7 +116,10 @@ class AerialBodyController(BaseController):
             # the lean step: whole joint vectors in, every joint's effort out (the fingers' zero), nothing else
             efforts, m.xi, m.yaw_des = self.step_fn.efforts(*tensors)
             self._needs_yaw_sync.zero_()
-            self.articulation.set_qf(efforts)
+            if cpu is not None:
+                cpu.set_qf(efforts.numpy()[0])
+            else:
+                self.articulation.set_qf(efforts)
         else:
             q, qd = q_all[:, self._joints], qd_all[:, self._joints]
             result = self.step_fn(q, qd, *tensors[2:])

@@ -39,7 +39,18 @@ log = logging.getLogger(__name__)
 # Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
 # in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
 INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
-AOT_INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True}  # an AOTInductor package is C++ throughout
+# An AOTInductor package is C++ throughout. The step is a few hundred flops on (N, 3) tensors, so what a call costs is
+# its bookkeeping: a heap tensor per intermediate buffer and an ATen call per small matmul. The small matmuls are
+# decomposed into the fused kernel (inductor's own pass: on a CPU it applies to a batch of one, physx_cpu's N), and
+# the intermediates live on the stack: about 20 -> 7 microseconds per call, the outputs copied (`_owned`: such a
+# package hands out the same output buffers at every call). The minimal array-ref interface, which goes with stack
+# allocation in inductor's examples, also kept every call's inputs alive through the Python runner (30 MB per 100k
+# calls); tests/envs/control/test_fused.py checks that a call leaves nothing behind and that outputs do not alias.
+AOT_INDUCTOR_OPTIONS = {
+    "cpp.vec_isa_ok": True,
+    "aot_inductor.allow_stack_allocation": True,
+    "post_grad_fusion_options": {"decompose_mm_pass": {}},
+}
 
 
 class StepResult(NamedTuple):
@@ -245,7 +256,7 @@ class FusedPhysicsStep:
         fast = self._fast.get(variant)
         if fast is not None and tensors[0].shape == fast[0]:  # the shapes follow from q's (N and the joint count)
             self.backend = "compiled ahead of time"
-            return fast[1]([t if t.is_contiguous() else t.contiguous() for t in tensors])
+            return _owned(fast[1]([t if t.is_contiguous() else t.contiguous() for t in tensors]))
         if self._aot_ok:
             shapes = (variant, *(t.shape for t in tensors))
             run = self._aot.get(shapes)
@@ -258,7 +269,7 @@ class FusedPhysicsStep:
             if run is not None:
                 self._fast[variant] = (tensors[0].shape, run)
                 self.backend = "compiled ahead of time"
-                return run([t if t.is_contiguous() else t.contiguous() for t in tensors])
+                return _owned(run([t if t.is_contiguous() else t.contiguous() for t in tensors]))
         compiled = self._compiled_fn(variant, fn)
         if compiled is None:
             return fn(*tensors)
@@ -296,6 +307,13 @@ class FusedPhysicsStep:
             log.warning("aerobench: %s of the physics step failed (%s); %s. AEROBENCH_COMPILE=0 skips the attempt.",
                         what, reason, instead)
         return reason
+
+
+def _owned(outputs: list[torch.Tensor]) -> list[torch.Tensor]:
+    """A package with stack-allocated intermediates returns the same output buffers at every call: copies, so that
+    the controller memory fed back (and anything a caller keeps) is not overwritten by the next call (about a
+    microsecond each)."""
+    return [t.clone() for t in outputs]
 
 
 _STEPS: dict[tuple, FusedPhysicsStep] = {}

@@ -17,7 +17,7 @@ from mani_skill.utils.registration import register_env
 
 from ..checks import FailureCause, Phase, consecutive
 from ..control.arm import arm_point_positions_body
-from ..geometry import body_points_to_world, point_box_distance
+from ..geometry import body_points_to_world
 from ..observations import wrap_angle
 from ..scenes import articulated
 from ..tasks import instruction
@@ -138,8 +138,7 @@ class ArticulationEvaluator(SkillEvaluator):
             body = torch.stack([arm["shoulder"], arm["elbow"], arm["wrist"], 0.5 * (arm["shoulder"] + arm["elbow"])], 1)
             arm_world = ctx.state.position[:, None] + torch.einsum("nij,npj->npi", ctx.state.rotation, body)
             pts = torch.cat([pts, arm_world], dim=1)
-        boxes = env.obstacle_boxes(torch.arange(self.n, device=self.device))
-        return point_box_distance(pts, boxes).flatten(1).min(1).values - env.proxy_radius
+        return env.robot_clearance(pts)
 
     def update(self, ctx, mine):
         q_bar = self.progress()

@@ -120,6 +120,32 @@ def test_the_lean_step_and_the_airframe_state_match_the_full_step(platform, aot_
     assert step.backend == "compiled ahead of time", step.backend
 
 
+def test_a_compiled_call_keeps_nothing_alive_and_its_outputs_are_its_own(aot_cache):
+    """The body controller calls the step 240 times per simulated second for days of generation and training: a
+    call must not keep its inputs (an AOTInductor runner option once held every call's input list: 30 MB per 100k
+    calls), and what it returns must not be overwritten by the next call (the controller memory is fed back; a
+    package with stack-allocated intermediates hands out the same output buffers every time)."""
+    import weakref
+
+    spec, tensors = _tensors("gripper", n=1)
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    fingers = torch.randn(1, 2)
+    inputs = [torch.cat([tensors[0], fingers], -1), torch.cat([tensors[1], -fingers], -1), *(t.clone() for t in tensors[2:])]
+    step.efforts(*inputs)  # builds or loads the package
+    assert step.backend == "compiled ahead of time", step.backend
+    first = step.efforts(*inputs)
+    kept = [t.clone() for t in first]
+    inputs[2] = -inputs[2]  # another velocity command: other efforts
+    second = step.efforts(*inputs)
+    assert not torch.equal(first[0], second[0])
+    for mine, copy, later in zip(first, kept, second):
+        assert torch.equal(mine, copy) and mine.data_ptr() != later.data_ptr()
+    refs = [weakref.ref(t) for t in inputs]
+    outputs = [weakref.ref(t) for t in step.efforts(*inputs)]
+    del inputs
+    assert [r() is None for r in refs + outputs] == [True] * (len(refs) + len(outputs))
+
+
 def test_torch_compiled_step_matches_the_eager_one():
     """The path of GPUs, and of CPUs where the ahead-of-time build fails."""
     spec, tensors = _tensors("arm")

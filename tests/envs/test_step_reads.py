@@ -1,0 +1,36 @@
+"""What the step context reads on physx_cpu without ManiSkill's batched wrappers (the contact reader's one pass over
+PhysX's contact list, body poses from their SAPIEN entity) against ManiSkill's own queries."""
+
+import gymnasium as gym
+import torch
+
+import aerobench.envs  # noqa: F401
+from aerobench.envs.poses import pose_of
+from aerobench.policies import make_policy
+
+
+def test_the_cpu_reader_gives_maniskills_per_pair_and_net_forces_while_an_object_is_held():
+    env = gym.make("AeroPick-v1", num_envs=1)
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    policy = make_policy("expert", base)
+    policy.reset(torch.arange(1))
+    compared = 0
+    for _ in range(300):
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        if bool(terminated.any() | truncated.any()):
+            break
+        if not bool(info["is_grasped"].any()):
+            continue
+        readout, scene, target = base.contacts.read(), base.scene, base.target
+        on_target = torch.stack([scene.get_pairwise_contact_forces(f, target) for f in base.agent.finger_links], 1)
+        links = base.agent.robot.get_net_contact_forces(base.contacts.link_names)
+        assert float(on_target.norm(dim=-1).min()) > 0.5  # both fingers squeeze the object: a real comparison
+        torch.testing.assert_close(readout.finger_on_target, on_target, rtol=1e-5, atol=1e-4)
+        torch.testing.assert_close(readout.target_net, target.get_net_contact_forces(), rtol=1e-5, atol=1e-4)
+        torch.testing.assert_close(readout.link_forces, links, rtol=1e-5, atol=1e-4)
+        for body in (*base.agent.finger_links, base.agent.grasp_link, target):
+            assert torch.equal(pose_of(body).raw_pose, body.pose.raw_pose)
+        compared += 1
+    env.close()
+    assert compared >= 10, compared
