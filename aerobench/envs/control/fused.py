@@ -42,10 +42,11 @@ INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
 # An AOTInductor package is C++ throughout. The step is a few hundred flops on (N, 3) tensors, so what a call costs is
 # its bookkeeping: a heap tensor per intermediate buffer and an ATen call per small matmul. The small matmuls are
 # decomposed into the fused kernel (inductor's own pass: on a CPU it applies to a batch of one, physx_cpu's N), and
-# the intermediates live on the stack: about 20 -> 7 microseconds per call, the outputs copied (`_owned`: such a
-# package hands out the same output buffers at every call). The minimal array-ref interface, which goes with stack
-# allocation in inductor's examples, also kept every call's inputs alive through the Python runner (30 MB per 100k
-# calls); tests/envs/control/test_fused.py checks that a call leaves nothing behind and that outputs do not alias.
+# the intermediates live on the stack: a call about 3x cheaper (docs/performance.md), the outputs copied
+# (`_owned`: such a package hands out the same output buffers at every call). The minimal array-ref interface, which
+# goes with stack allocation in inductor's examples, also kept every call's inputs alive through the Python runner
+# (30 MB per 100k calls); tests/envs/control/test_fused.py checks that a call leaves nothing behind and that outputs
+# do not alias.
 AOT_INDUCTOR_OPTIONS = {
     "cpp.vec_isa_ok": True,
     "aot_inductor.allow_stack_allocation": True,
