@@ -42,7 +42,7 @@ class ContactReader:
         n = scene.num_envs
         self._zeros2 = torch.zeros(n, 2, 3, device=scene.device)
         self._zeros1 = torch.zeros(n, 3, device=scene.device)
-        self._ids: tuple[dict, dict, object, set, set] | None = None
+        self._body_index: tuple[dict, dict, object, set, set] | None = None
 
     def read(self) -> ContactReadout:
         if self.scene.gpu_sim_enabled:
@@ -63,7 +63,7 @@ class ContactReader:
         # PhysX bodies by their Python wrapper: pybind returns the one wrapper of a live C++ object, and ManiSkill
         # holds each body's, so a contact's `bodies` are these very objects and an identity lookup finds them (a
         # lookup through `body.entity.per_scene_id` costs two more wrappers per body). Found once per scene.
-        if self._ids is None:
+        if self._body_index is None:
             def body(obj):
                 return obj._bodies[0]
 
@@ -73,8 +73,8 @@ class ContactReader:
             handles = {body(h) for h in self.handles}
             # every body a readout sums forces on (the links, the target): contacts between two others are skipped
             relevant = set(link_of) | set(finger_of) | ({target} if target is not None else set())
-            self._ids = (link_of, finger_of, target, handles, relevant)
-        return self._ids
+            self._body_index = (link_of, finger_of, target, handles, relevant)
+        return self._body_index
 
     def _read_cpu(self) -> ContactReadout:
         link_of, finger_of, target, handles, relevant = self._bodies()
