@@ -14,10 +14,17 @@ import torch
 from mani_skill.utils.structs import Actor, Link, Pose
 
 
+def raw_pose_of(body: Actor | Link) -> torch.Tensor:
+    """`body.pose.raw_pose`, `(N, 7)` (position, wxyz); on physx_cpu without ManiSkill's list conversions."""
+    if body.scene.gpu_sim_enabled or len(body._objs) != 1:
+        return body.pose.raw_pose
+    obj = body._objs[0]
+    pose = obj.entity_pose if isinstance(body, Link) else obj.pose  # a link component, or an actor's entity
+    return torch.from_numpy(np.concatenate([pose.p, pose.q]))[None]
+
+
 def pose_of(body: Actor | Link) -> Pose:
     """`body.pose`, the same `(N, 7)` numbers; on physx_cpu without ManiSkill's list conversions."""
     if body.scene.gpu_sim_enabled or len(body._objs) != 1:
         return body.pose
-    obj = body._objs[0]
-    pose = obj.entity_pose if isinstance(body, Link) else obj.pose  # a link component, or an actor's entity
-    return Pose(raw_pose=torch.from_numpy(np.concatenate([pose.p, pose.q]))[None])
+    return Pose(raw_pose=raw_pose_of(body))

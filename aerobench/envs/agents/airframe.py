@@ -20,7 +20,12 @@ from sapien.wrapper.articulation_builder import LinkBuilder
 from ..collision import ignore_self_collisions
 from ..control.payload import ControllerMode
 from ..control.so3 import quat_rotate
-from ..control.virtual_joints import VIRTUAL_JOINT_NAMES, AirframeState, airframe_state_from_joints
+from ..control.virtual_joints import (
+    NUM_VIRTUAL_JOINTS,
+    VIRTUAL_JOINT_NAMES,
+    AirframeState,
+    airframe_state_from_joints,
+)
 from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
 from ..poses import pose_of
@@ -191,6 +196,7 @@ class AerialAgent(BaseAgent):
         self.virtual_joint_indices = torch.tensor(
             [self.robot.active_joints_map[n].active_index[0] for n in VIRTUAL_JOINT_NAMES], device=self.device
         )
+        self.finger_joint_indices = [self.robot.active_joints_map[n].active_index[0] for n in FINGER_JOINT_NAMES]
 
     # ----------------------------------------------------------------------------------------------------------------
     # Controllers and sensors
@@ -258,9 +264,22 @@ class AerialAgent(BaseAgent):
     # ----------------------------------------------------------------------------------------------------------------
     # State and checks
     # ----------------------------------------------------------------------------------------------------------------
+    def joint_state(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The articulation's joint positions and velocities `(N, J)` (on physx_cpu read straight from PhysX)."""
+        if self.controllers:
+            return self.body_controller.joint_state()
+        return self.robot.get_qpos(), self.robot.get_qvel()
+
+    def virtual_joints(self, q: torch.Tensor, qd: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The six virtual joints' columns `(N, 6)` of whole joint vectors (a slice where they lead)."""
+        if self.controllers and self.body_controller.leading_joints:
+            return q[:, :NUM_VIRTUAL_JOINTS], qd[:, :NUM_VIRTUAL_JOINTS]
+        idx = self.virtual_joint_indices
+        return q[:, idx], qd[:, idx]
+
     def airframe_state(self) -> AirframeState:
         """Position and velocity of the airframe centre, rotation and body angular velocity, `(N, ...)`."""
-        q, qd = self.robot.get_qpos(), self.robot.get_qvel()
+        q, qd = self.joint_state()
         controller = self.body_controller if self.controllers else None
         if controller is not None and controller.leading_joints:  # the virtual joints lead: one compiled call
             return controller.step_fn.airframe_state(q, qd)
@@ -270,8 +289,8 @@ class AerialAgent(BaseAgent):
     def get_proprioception(self, state: AirframeState | None = None) -> dict:
         """The documented proprioceptive state (`observations.STATE_FIELDS`), `(N, 19)` or `(N, 25)` with the arm;
         `state`: this step's airframe state where the caller already has it."""
-        q, qd = self.robot.get_qpos(), self.robot.get_qvel()
-        fingers = [self.robot.active_joints_map[n].active_index[0] for n in FINGER_JOINT_NAMES]
+        q, qd = self.joint_state()
+        fingers = self.finger_joint_indices
         arm = [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
         state = self.airframe_state() if state is None else state
         state = proprio_state(state, q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])
@@ -311,10 +330,15 @@ class AerialAgent(BaseAgent):
 
     _tcp_offset_in_grasp_link: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
+    @property
+    def tcp_offset(self) -> tuple[float, float, float]:
+        """The tool centre point in the grasp link's frame, m."""
+        return tuple(float(x) for x in self._tcp_offset_in_grasp_link)
+
     def finger_opening(self) -> torch.Tensor:
         """Distance between the finger pads, m, `(N,)`."""
-        q = self.robot.get_qpos()
-        return sum(q[:, self.robot.active_joints_map[n].active_index[0]] for n in FINGER_JOINT_NAMES)
+        q = self.joint_state()[0]
+        return q[:, self.finger_joint_indices[0]] + q[:, self.finger_joint_indices[1]]
 
     def finger_contact_forces(self, obj: Actor) -> tuple[torch.Tensor, torch.Tensor]:
         """Contact force vectors `(N, 3)` of the left and right finger on `obj`."""

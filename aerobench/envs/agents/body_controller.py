@@ -95,6 +95,13 @@ class AerialBodyController(BaseController):
         if self.arm is not None:
             self.arm_target = self.arm.lower + 0.5 * (action[:, 4:7] + 1.0) * (self.arm.upper - self.arm.lower)
 
+    def joint_state(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The whole articulation's joint positions and velocities `(N, J)` (on physx_cpu straight from PhysX)."""
+        cpu = self._cpu_articulation
+        if cpu is not None:
+            return torch.from_numpy(cpu.get_qpos())[None], torch.from_numpy(cpu.get_qvel())[None]
+        return self.articulation.get_qpos(), self.articulation.get_qvel()
+
     def before_simulation_step(self):
         # No host synchronization in here (no .any(), .item() or branch on a tensor): on physx_cuda it would stall
         # the whole batch at every physics step. tests/envs/control/test_fused.py checks it.
@@ -103,10 +110,7 @@ class AerialBodyController(BaseController):
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
         cpu = self._cpu_articulation
-        if cpu is not None:
-            q_all, qd_all = torch.from_numpy(cpu.get_qpos())[None], torch.from_numpy(cpu.get_qvel())[None]
-        else:
-            q_all, qd_all = self.articulation.get_qpos(), self.articulation.get_qvel()
+        q_all, qd_all = self.joint_state()
         m = self.memory
         tensors = [q_all, qd_all, self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w,
                    self._needs_yaw_sync]

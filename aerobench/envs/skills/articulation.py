@@ -20,8 +20,9 @@ from ..control.arm import arm_point_positions_body
 from ..geometry import body_points_to_world
 from ..observations import wrap_angle
 from ..scenes import articulated
+from ..signals import HELD_FORCE_N
 from ..tasks import instruction
-from .base import HELD_FORCE_N, AeroSkillEnv
+from .base import AeroSkillEnv
 from .evaluator import GoalFeatures, SkillEvaluator
 
 OPEN_THRESHOLD = {"fridge": 0.75, "drawer": 0.90}  # spec: alpha_a

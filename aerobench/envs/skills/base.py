@@ -2,8 +2,9 @@
 
 A skill env = a task setting's procedural scene (one layout per parallel env), its objects, the platform, one or
 more `SkillEvaluator`s (pick, place, nav, open/close; `evaluators.py`) and the episode sampler of its first skill.
-Per control step the env reads contacts once, computes the shared signals (`StepContext`), lets the active
-evaluator add its own, latches failures, and hands the payload / contact-mode switches to the flight controller.
+Per control step the env reads the simulation once (joints, poses, contacts), computes the shared signals from those
+reads (`signals.shared_signals`, one compiled call on a CPU) into a `StepContext`, lets the active evaluator add its
+own, latches failures, and hands the payload / contact-mode switches to the flight controller.
 
 Args (besides ManiSkill's `num_envs`, `obs_mode`, `sim_backend`, ...): `setting` (TidyHouse | PrepareGroceries |
 PackageDelivery | LongHorizonRearrangement), `object` (one of the setting's objects; default: sampled per env),
@@ -29,42 +30,23 @@ from mani_skill.utils.structs import Actor, Pose
 from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
 from ..assets import YCB_IDS, parse_real_assets, replicacad_dir, ycb_model_dir
 from ..base_env import AerialEnv
-from ..checks import (
-    FailureCause,
-    SafetyLimits,
-    consecutive,
-    flight_envelope_flags,
-    is_pinched,
-    latch_failure,
-    nontarget_contact_force,
-    support_force,
-)
+from ..checks import FailureCause, SafetyLimits, consecutive, latch_failure
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
-from ..control.so3 import quat_rotate, quat_wxyz_to_matrix
 from ..control.virtual_joints import AirframeState
-from ..geometry import (
-    body_points_to_world,
-    drone_proxy_points_body,
-    min_distance_to_boxes,
-    pack_boxes,
-    point_box_distance,
-)
+from ..geometry import drone_proxy_points_body, min_distance_to_boxes, pack_boxes, point_box_distance
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
-from ..poses import pose_of
+from ..poses import raw_pose_of
 from ..scenes import generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
 from ..scenes.room_routes import RoomRoutes
+from ..signals import ENVELOPE_FLAGS, SharedSignals, SignalConstants, signals_kernel
 from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
 from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
 
 RENDER_EYE_CANDIDATES = 12
-GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force
-HELD_FORCE_N = 0.1  # spec (chained evaluation, Open/Close release): "both fingers exceed 0.1 N"
-SUPPORTED_WEIGHT_FRACTION = 0.3  # support evidence: the non-finger contacts carry this share of the weight
-UPRIGHT_COS = math.cos(math.radians(15.0))
 
 
 @dataclass
@@ -93,6 +75,7 @@ class StepContext:
     is_grasp_held: torch.Tensor | None = None  # both fingers > HELD_FORCE_N (spec's transport criterion)
     is_supported: torch.Tensor | None = None  # something other than the fingers carries >= 30% of its weight
     is_upright: torch.Tensor | None = None
+    signals: SharedSignals | None = None  # everything above and the base signals of `evaluate()`, as computed
 
 
 class AeroSkillEnv(EpisodeStarts, AerialEnv):
@@ -265,6 +248,12 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         self.contacts = ContactReader(
             self.scene, self.agent.robot, names, FINGER_JOINT_NAMES, self.target, self._handle_links()
         )
+        const = SignalConstants(
+            tcp_offset=self.agent.tcp_offset, finger_idx=tuple(names.index(n) for n in FINGER_JOINT_NAMES),
+            airframe_idx=names.index("airframe"), proxy_radius=float(self.proxy_radius), safety=self.safety,
+            has_target=self.target is not None,
+        )
+        self._signals_kernel = signals_kernel(const, self.device)  # one per process and kind of env: compiled once
 
     def _handle_links(self) -> list:
         """Fixture links whose handles the fingers may pinch (Open/Close)."""
@@ -324,54 +313,49 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         self.evaluate()
         return self._ctx
 
-    def step_context(self) -> StepContext:
-        state = self.agent.airframe_state()
-        tcp_pose = self.agent.tcp_pose
+    def signal_inputs(self) -> tuple[list[torch.Tensor], ContactReadout]:
+        """This step's reads of the simulation and the env's constants, as `signals.shared_signals` takes them, and
+        the contact readout among them."""
+        agent = self.agent
+        q, qd = agent.joint_state()
+        q_v, qd_v = agent.virtual_joints(q, qd)
         readout = self.contacts.read()
-        finger_idx = [self.monitored_links.index(n) for n in FINGER_JOINT_NAMES]
-        airframe_idx = self.monitored_links.index("airframe")
-        e_y = torch.tensor([0.0, 1.0, 0.0], device=self.device)  # a finger closes along its link's y axis
-        opening_dirs = torch.stack(
-            [sign * quat_rotate(pose_of(link).q, e_y) for link, sign in zip(self.agent.finger_links, (1.0, -1.0))], dim=1
-        )
-        omega_world = (state.rotation @ state.angular_velocity_body[..., None])[..., 0]
+        tensors = [
+            q_v, qd_v, raw_pose_of(agent.grasp_link), torch.stack([raw_pose_of(f)[:, 3:] for f in agent.finger_links], 1),
+            readout.link_forces, readout.finger_on_target, readout.target_net, q[:, agent.finger_joint_indices],
+            self.workspace_lo, self.workspace_hi, self.proxy_points, self.obstacle_boxes(),
+        ]
+        if self.target is not None:
+            tensors += [raw_pose_of(self.target), self.target.linear_velocity, self.target_grasp_point,
+                        self.target_grasps_rim, self.target_mass, self._object_start_p, self._object_start_q]
+        return tensors, readout
+
+    def step_context(self) -> StepContext:
+        tensors, readout = self.signal_inputs()
+        q_v, qd_v, grasp_link_pose = tensors[:3]
+        s = SharedSignals.from_flat(self._signals_kernel(*tensors))
         ctx = StepContext(
             step=self._episode_step.clone(),
-            state=state,
+            state=AirframeState(q_v[:, :3], qd_v[:, :3], s.rotation, s.angular_velocity_body),
             readout=readout,
-            speed=torch.linalg.norm(state.velocity, dim=-1),
-            angular_speed=torch.linalg.norm(omega_world, dim=-1),
-            nontarget_force=nontarget_contact_force(readout.link_forces, finger_idx, readout.finger_on_target),
-            airframe_force=torch.linalg.norm(readout.link_forces[:, airframe_idx], dim=-1),
-            gripper_opening=self.agent.finger_opening(),
+            speed=s.speed,
+            angular_speed=s.angular_speed,
+            nontarget_force=s.nontarget_force,
+            airframe_force=s.airframe_force,
+            gripper_opening=s.gripper_opening,
             gripper_command=self._gripper_command.clone(),
-            tcp=tcp_pose.p,
-            tcp_pose=tcp_pose,
-            opening_dirs=opening_dirs,
+            tcp=s.tcp,
+            tcp_pose=Pose.create_from_pq(p=s.tcp, q=grasp_link_pose[:, 3:]),  # the offset is a pure translation
+            opening_dirs=s.opening_dirs,
+            signals=s,
         )
         if self.target is not None:
-            pose = pose_of(self.target)
-            R = quat_wxyz_to_matrix(pose.q)
-            ctx.object_pose, ctx.object_rotation = pose, R
-            ctx.object_velocity = self.target.linear_velocity
-            ctx.object_bottom_z = pose.p[:, 2]
-            ctx.grasp_point = self._planned_grasp_point(pose.p, R, ctx.tcp)
-            ctx.is_grasped = is_pinched(readout.finger_on_target, opening_dirs, GRASP_FORCE_N)
-            ctx.is_grasp_held = (torch.linalg.norm(readout.finger_on_target, dim=-1) > HELD_FORCE_N).all(-1)
-            lift = support_force(readout.target_net, readout.finger_on_target)[:, 2]
-            ctx.is_supported = lift >= SUPPORTED_WEIGHT_FRACTION * self.target_mass * 9.81
-            ctx.is_upright = R[:, 2, 2] >= UPRIGHT_COS
+            object_pose, ctx.object_velocity = tensors[12:14]
+            ctx.object_pose, ctx.object_rotation = Pose(raw_pose=object_pose), s.object_rotation
+            ctx.object_bottom_z = object_pose[:, 2]
+            ctx.grasp_point, ctx.is_grasped, ctx.is_grasp_held = s.grasp_point, s.is_grasped, s.is_grasp_held
+            ctx.is_supported, ctx.is_upright = s.is_supported, s.is_upright
         return ctx
-
-    def _planned_grasp_point(self, position: torch.Tensor, R: torch.Tensor, tcp: torch.Tensor) -> torch.Tensor:
-        """World position of the object's planned grasp point `(N, 3)`; for a rim grasp, the rim point nearest the
-        tool centre point (a bowl turning about its axis in the jaws is still held where it was planned)."""
-        g = self.target_grasp_point
-        point = position + (R @ g[..., None])[..., 0]
-        local = (R.transpose(-1, -2) @ (tcp - position)[..., None])[..., 0]
-        direction = local[:, :2] / torch.linalg.norm(local[:, :2], dim=-1, keepdim=True).clamp_min(1e-6)
-        rim = torch.cat([direction * g[:, :1], g[:, 2:3]], dim=-1)
-        return torch.where(self.target_grasps_rim[:, None], position + (R @ rim[..., None])[..., 0], point)
 
     def evaluate(self) -> dict:
         """All per-step signals, `(N,)` tensors; computed once per control step (ManiSkill may call this again)."""
@@ -384,42 +368,41 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             held_start = self.starts_held & (ctx.step < GRASP_CONFIRM_STEPS)
             streak = consecutive(self._grasp_streak, ctx.is_grasped)
             self._grasp_streak = torch.where(held_start, torch.clamp(streak, min=GRASP_CONFIRM_STEPS), streak)
-        envelope = flight_envelope_flags(ctx.state.position, ctx.state.rotation, self.workspace_lo, self.workspace_hi, self.safety)
+        s = ctx.signals
+        envelope = {flag: getattr(s, flag) for flag in ENVELOPE_FLAGS}
         active = self.active_evaluator_index()
         info: dict[str, torch.Tensor] = {
-            "tilt": torch.acos(torch.clamp(ctx.state.rotation[:, 2, 2], -1.0, 1.0)),
-            "altitude": ctx.state.position[:, 2] - self.workspace_lo[:, 2],
+            "tilt": s.tilt,
+            "altitude": s.altitude,
             "speed": ctx.speed,
             "angular_speed": ctx.angular_speed,
             # roll-pitch angular speed and the vertical velocity-error integral (spec appendix "Payload-Aware Flight
             # Control" logs both during the carry)
-            "tilt_rate": torch.linalg.norm(ctx.state.angular_velocity_body[:, :2], dim=-1),
+            "tilt_rate": s.tilt_rate,
             "integral_z": self.agent.body_controller.memory.xi[:, 2].clone(),
             "tcp_height": ctx.tcp[:, 2],
             "nontarget_contact_force": ctx.nontarget_force,
             "airframe_contact_force": ctx.airframe_force,
             "gripper_opening": ctx.gripper_opening,
-            "min_obstacle_clearance": self.airframe_clearance(ctx.state),
+            "min_obstacle_clearance": s.clearance,
             "init_failed": self.init_failed.clone(),
             "subtask_index": active,
             **envelope,
         }
         if ctx.object_pose is not None:
-            f = torch.linalg.norm(ctx.readout.finger_on_target, dim=-1)
             info.update(
                 is_grasped=ctx.is_grasped,
                 is_grasp_held=ctx.is_grasp_held,
-                grasp_force_left=f[:, 0],
-                grasp_force_right=f[:, 1],
+                grasp_force_left=s.grasp_forces[:, 0],
+                grasp_force_right=s.grasp_forces[:, 1],
                 object_height=ctx.object_bottom_z,
-                object_speed=torch.linalg.norm(ctx.object_velocity, dim=-1),
+                object_speed=s.object_speed,
                 is_object_upright=ctx.is_upright,
                 is_object_supported=ctx.is_supported,
-                tcp_to_grasp_point=torch.linalg.norm(ctx.tcp - ctx.grasp_point, dim=-1),
+                tcp_to_grasp_point=s.tcp_to_grasp_point,
                 # since the episode started: how far the object moved and how much it turned (spec "Failure Analysis")
-                object_displacement=torch.linalg.norm(ctx.object_pose.p - self._object_start_p, dim=-1),
-                object_rotation=2 * torch.acos(torch.clamp((ctx.object_pose.q * self._object_start_q).sum(-1).abs(),
-                                                           max=1.0)),
+                object_displacement=s.object_displacement,
+                object_rotation=s.object_turn,
             )
         success = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         flags: list[tuple[FailureCause, torch.Tensor]] = []
@@ -449,15 +432,11 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
     def _overall_success(self, active_success: torch.Tensor) -> torch.Tensor:
         return active_success
 
-    def airframe_clearance(self, state: AirframeState) -> torch.Tensor:
-        return self.robot_clearance(body_points_to_world(self.proxy_points, state.position, state.rotation))
-
     def robot_clearance(self, points: torch.Tensor) -> torch.Tensor:
         """Clearance `(N,)` of the robot's proxy `points` `(N, P, 3)` (world) from the scene's boxes, less the proxy
         radius. Every box is measured: culling the far ones first (exact, by the 1-Lipschitz bound) doubled the cost
         on a CPU, where a step's few dozen small ops cost their dispatch, not their elements."""
-        boxes = self.obstacle_boxes(torch.arange(self.num_envs, device=self.device))
-        return min_distance_to_boxes(points, boxes) - self.proxy_radius
+        return min_distance_to_boxes(points, self.obstacle_boxes()) - self.proxy_radius
 
     # ----------------------------------------------------------------------------------------------------------------
     # Controller hand-offs, observations, instruction

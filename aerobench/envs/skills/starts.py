@@ -53,13 +53,14 @@ class EpisodeStarts:
         local = torch.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], -1)
         return (local.abs() <= row[:, 2:4] - margin).all(-1)
 
-    def obstacle_boxes(self, env_idx: torch.Tensor) -> torch.Tensor:
-        """Packed static boxes plus the fixtures (fridge, drawer) in their current state, for the given envs."""
-        if not self.built.fixtures:
-            return self.static_boxes[env_idx]
-        names = list(self.built.fixtures)
-        fixtures = articulated.packed_fixture_boxes(names, [self.built.fixtures[n] for n in names])
-        return torch.cat([self.static_boxes, fixtures], dim=1)[env_idx]
+    def obstacle_boxes(self, env_idx: torch.Tensor | None = None) -> torch.Tensor:
+        """Packed static boxes plus the fixtures (fridge, drawer) in their current state, for the given envs (all
+        by default)."""
+        boxes = self.static_boxes
+        if self.built.fixtures:
+            names = list(self.built.fixtures)
+            boxes = torch.cat([boxes, articulated.packed_fixture_boxes(names, [self.built.fixtures[n] for n in names])], 1)
+        return boxes if env_idx is None else boxes[env_idx]
 
     def sample_start(
         self,

@@ -1,19 +1,20 @@
 """The fused physics step: the same numbers as the laws it chains, compiled or not, and no host synchronization."""
 
-import os
-
 import gymnasium as gym
 import pytest
 import torch
-from torch.utils._python_dispatch import TorchDispatchMode
 
 import aerobench.envs  # noqa: F401
-from aerobench.envs.control import fused
+from aerobench.envs import kernels
 from aerobench.envs.control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
 from aerobench.envs.control.flight import FlightMemory, FlightParams, flight_step
 from aerobench.envs.control.fused import FusedPhysicsStep, physics_step
 from aerobench.envs.control.virtual_joints import airframe_state_from_joints, joint_efforts_from_wrench
 from aerobench.envs.platforms import get_platform
+from tests.envs.host_sync import NoHostSync
+
+# every test here builds its packages into a cache of this run's (never the user's)
+pytestmark = pytest.mark.usefixtures("aot_cache")
 
 
 def _inputs(platform: str, n: int = 3, seed: int = 0):
@@ -57,19 +58,6 @@ def test_fused_step_is_the_laws_it_chains(platform):
     assert torch.equal(result.state(q, qd).position, state.position)
     # the reset env took its own heading (then one step of the commanded yaw rate)
     assert float(result.yaw_des[0]) == pytest.approx(float(state.yaw[0] + yaw_rate[0] * params.dt), abs=1e-6)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def aot_cache(tmp_path_factory):
-    """One ahead-of-time package cache for this test run (never the user's), shared by pytest-xdist's workers so a
-    package is built once per run."""
-    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-    base = tmp_path_factory.getbasetemp()
-    root = base.parent / f"aerobench_cache_{run}" if run else base / "aerobench_cache"
-    root.mkdir(exist_ok=True)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("AEROBENCH_CACHE_DIR", str(root))
-        yield root
 
 
 def _tensors(platform: str, seed: int = 1, n: int = 3):
@@ -150,7 +138,8 @@ def test_torch_compiled_step_matches_the_eager_one():
     """The path of GPUs, and of CPUs where the ahead-of-time build fails."""
     spec, tensors = _tensors("arm")
     step = FusedPhysicsStep(spec, "cpu", compile=True)
-    step._aot_ok = False
+    for kernel in step.kernels.values():
+        kernel.aot_ok = False
     compiled, eager = step(*tensors), step.eager(*tensors)
     assert step.backend == "compiled", step.backend
     for name, a, b in zip(compiled._fields, compiled, eager):
@@ -163,7 +152,7 @@ def test_a_failed_ahead_of_time_build_falls_back_to_torch_compile(monkeypatch, c
     def broken(*args, **kwargs):
         raise RuntimeError("no linker")
 
-    monkeypatch.setattr(fused, "load_aot_step", broken)
+    monkeypatch.setattr(kernels, "load_aot", broken)
     monkeypatch.setattr(torch, "compile", lambda fn, **kw: fn)  # stands in for a working torch.compile
     step = FusedPhysicsStep(spec, "cpu", compile=True)
     with caplog.at_level("WARNING"):
@@ -178,7 +167,7 @@ def test_a_broken_compiler_falls_back_to_the_eager_step(monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("no C++ compiler")
 
-    monkeypatch.setattr(fused, "load_aot_step", broken)
+    monkeypatch.setattr(kernels, "load_aot", broken)
     monkeypatch.setattr(torch, "compile", lambda fn, **kw: broken)
     step = FusedPhysicsStep(spec, "cpu", compile=True)
     tensors = [q, qd, v_cmd, yaw_rate, memory.xi, memory.yaw_des, memory.mass_hat, memory.k_R, memory.k_w, sync]
@@ -187,20 +176,8 @@ def test_a_broken_compiler_falls_back_to_the_eager_step(monkeypatch):
     assert torch.equal(result.efforts, step.eager(*tensors).efforts)
 
 
-class _NoHostSync(TorchDispatchMode):
-    """Fails on every op that turns a tensor into a Python value (`.item()`, `bool()`, `.any()` in an `if`, ...)."""
-
-    SYNCING = {torch.ops.aten._local_scalar_dense.default, torch.ops.aten.is_nonzero.default,
-               torch.ops.aten.equal.default, torch.ops.aten.allclose.default}
-
-    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-        if func in self.SYNCING:
-            raise AssertionError(f"host synchronization in the per-physics-step path: {func}")
-        return func(*args, **(kwargs or {}))
-
-
 def test_the_detector_catches_a_sync():
-    with pytest.raises(AssertionError, match="host synchronization"), _NoHostSync():
+    with pytest.raises(AssertionError, match="host synchronization"), NoHostSync():
         if torch.ones(2).any():
             pass
 
@@ -214,7 +191,7 @@ def test_the_physics_step_path_makes_no_host_sync(platform):
     controller = env.unwrapped.agent.body_controller
     controller.step_fn = FusedPhysicsStep(env.unwrapped.platform, "cpu", compile=False)  # dispatch-visible ops
     controller.set_action(torch.full((1, controller.single_action_space.shape[0]), 0.3))
-    with _NoHostSync():
+    with NoHostSync():
         for _ in range(3):
             controller.before_simulation_step()
     assert bool(torch.isfinite(controller.memory.xi).all())

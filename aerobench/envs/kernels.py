@@ -1,0 +1,197 @@
+"""A pure function of tensors run as one compiled call, with the eager function as its fallback.
+
+With one env per process (physx_cpu) a per-step function of a few hundred small torch ops costs their dispatch, not
+their arithmetic. `Kernel` runs such a function (no Python branch on a tensor value, no tensor-to-Python conversion)
+as one call:
+
+- on a CPU, compiled ahead of time (AOTInductor: `torch.export` of the function for the input shapes seen at the
+  first call, then one C++ entry per call, without dynamo's guards and wrappers). The package is cached on disk
+  under `$AEROBENCH_CACHE_DIR` (default `~/.cache/aerobench`), keyed by the source of the modules the function
+  chains, the caller's key, the shapes (a dimension named in `dynamic` is left free), torch and the CPU's vector ISA;
+- elsewhere, or where the ahead-of-time build fails, `torch.compile` (inductor);
+- where that fails too, the eager function: the same numbers, reported once.
+
+`AEROBENCH_COMPILE=0` forces the eager path (the tests' default); `AEROBENCH_COMPILE_MODE=reduce-overhead` asks
+inductor to capture the call in a CUDA graph on a GPU (docs/gpu.md).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import tempfile
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import torch
+
+log = logging.getLogger(__name__)
+# Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
+# in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
+INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
+# An AOTInductor package is C++ throughout. A kernel is a few hundred flops on small tensors, so what a call costs is
+# its bookkeeping: a heap tensor per intermediate buffer and an ATen call per small matmul. The small matmuls are
+# decomposed into the fused kernel (inductor's own pass: on a CPU it applies to a batch of one, physx_cpu's N), and
+# the intermediates live on the stack: a call about 3x cheaper (docs/performance.md), the outputs copied
+# (`_owned`: such a package hands out the same output buffers at every call). The minimal array-ref interface, which
+# goes with stack allocation in inductor's examples, also kept every call's inputs alive through the Python runner
+# (30 MB per 100k calls); tests/envs/control/test_fused.py checks that a call leaves nothing behind and that outputs
+# do not alias.
+AOT_INDUCTOR_OPTIONS = {
+    "cpp.vec_isa_ok": True,
+    "aot_inductor.allow_stack_allocation": True,
+    "post_grad_fusion_options": {"decompose_mm_pass": {}},
+}
+
+
+def compile_requested() -> bool:
+    return os.environ.get("AEROBENCH_COMPILE", "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+def cache_dir() -> Path:
+    """Where compiled artifacts are kept across processes: `$AEROBENCH_CACHE_DIR`, else `~/.cache/aerobench`."""
+    root = os.environ.get("AEROBENCH_CACHE_DIR")
+    return Path(root) if root else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "aerobench"
+
+
+def source_digest(files: Sequence[Path]) -> str:
+    """The source of every module a kernel chains: a changed law is a new package, never a stale one."""
+    h = hashlib.sha256()
+    for f in sorted(files):
+        h.update(f.name.encode() + f.read_bytes())
+    return h.hexdigest()
+
+
+class _Exported(torch.nn.Module):
+    def __init__(self, fn: Callable):
+        super().__init__()
+        self.fn = fn
+
+    def forward(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        return tuple(self.fn(*tensors))
+
+
+def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: str,
+             dynamic: dict[int, int] | None = None) -> Callable:
+    """`fn` compiled ahead of time for the shapes of `tensors` (CPU), built once per key and loaded from the cache:
+    returns a function of the flat tensor list that returns the flat list of outputs. `dynamic` maps an input's
+    position to the dimension left free (e.g. a scene's box count)."""
+    dynamic = dynamic or {}
+    shapes = [tuple("*" if dynamic.get(i) == d else s for d, s in enumerate(t.shape)) for i, t in enumerate(tensors)]
+    digest = hashlib.sha256(repr((
+        key, shapes, [str(t.dtype) for t in tensors], torch.__version__, torch.backends.cpu.get_cpu_capability(),
+        AOT_INDUCTOR_OPTIONS,
+    )).encode()).hexdigest()[:24]
+    path = cache_dir() / folder / f"{digest}.pt2"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".pt2", dir=path.parent)
+        os.close(fd)
+        try:  # built beside its final name and renamed: a concurrent process sees a whole package or none
+            free = {i: torch.export.Dim(f"dim{i}_{d}", min=1) for i, d in dynamic.items()}
+            dynamic_shapes = (tuple({dynamic[i]: free[i]} if i in free else None for i in range(len(tensors))),)
+            with warnings.catch_warnings():  # torch's own pytree deprecation notes, nothing a user can act on
+                warnings.simplefilter("ignore", FutureWarning)
+                program = torch.export.export(_Exported(fn), tuple(tensors), strict=False,
+                                              dynamic_shapes=dynamic_shapes if dynamic else None)
+                torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(AOT_INDUCTOR_OPTIONS))
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+    # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it).
+    with torch._inductor.config.patch(AOT_INDUCTOR_OPTIONS):
+        return torch._inductor.aoti_load_package(str(path)).loader.run
+
+
+def _owned(outputs: Sequence[torch.Tensor]) -> list[torch.Tensor]:
+    """A package with stack-allocated intermediates returns the same output buffers at every call: copies, so that
+    memory fed back (and anything a caller keeps) is not overwritten by the next call (about a microsecond each)."""
+    return [t.clone() for t in outputs]
+
+
+class Kernel:
+    """`fn` (flat tensors in, a flat tuple of tensors out) as one call: compiled on its first call (ahead of time on
+    a CPU, else `torch.compile`); on any compiler failure the next option, reported once. `backend` says which ran
+    last: "compiled ahead of time", "compiled", "eager" (asked for) or "eager (fallback: <reason>)".
+
+    `name` says what the kernel is in reports and names its cache folder; `key` is whatever else fixes `fn` besides
+    the source of `sources` (bound parameters, constants); `shape_key` picks from the inputs what fixes every input
+    shape (default: all of them) and `dynamic` which dimensions stay free in an ahead-of-time package."""
+
+    _reported: set[tuple[str, str]] = set()
+
+    def __init__(self, fn: Callable, name: str, key: object, sources: Sequence[Path], device: torch.device | str,
+                 compile: bool, dynamic: dict[int, int] | None = None,
+                 shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None):
+        self.fn, self.name, self.dynamic = fn, name, dynamic
+        self._key, self._sources = key, tuple(sources)
+        self._shape_key = shape_key or (lambda tensors: tuple(t.shape for t in tensors))
+        self.backend = "not run yet" if compile else "eager"
+        self._compile = compile
+        self._mode = os.environ.get("AEROBENCH_COMPILE_MODE") or None
+        self.cuda_graphs = compile and self._mode is not None and "reduce-overhead" in self._mode and str(device).startswith("cuda")
+        self._compiled: Callable | None = None  # torch.compile's function
+        self._compile_failed = False
+        self._aot: dict[object, Callable] = {}  # per shape key: the loaded package
+        self.aot_ok = compile and str(device) == "cpu" and self._mode is None
+        self._fast: tuple[object, Callable] | None = None  # the package for the shapes seen last
+
+    def __call__(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...] | list[torch.Tensor]:
+        shapes = self._shape_key(tensors)
+        fast = self._fast
+        if fast is not None and shapes == fast[0]:
+            self.backend = "compiled ahead of time"
+            return _owned(fast[1]([t if t.is_contiguous() else t.contiguous() for t in tensors]))
+        if self.aot_ok:
+            run = self._aot.get(shapes)
+            if run is None:
+                try:
+                    key = repr((source_digest(self._sources), self._key))
+                    run = self._aot[shapes] = load_aot(self.fn, [t.contiguous() for t in tensors], key, self.name,
+                                                       self.dynamic)
+                except Exception as exc:  # noqa: BLE001 - torch.compile (or eager) is the same function
+                    self.aot_ok = False
+                    self._report("ahead-of-time compilation", exc, "running torch.compile instead")
+            if run is not None:
+                self._fast = (shapes, run)
+                self.backend = "compiled ahead of time"
+                return _owned(run([t if t.is_contiguous() else t.contiguous() for t in tensors]))
+        compiled = self._compiled_fn()
+        if compiled is None:
+            return self.fn(*tensors)
+        if self.cuda_graphs:  # a captured graph reuses its output buffers at the next replay: keep copies
+            torch.compiler.cudagraph_mark_step_begin()
+        try:
+            result = compiled(*tensors)
+        except Exception as exc:  # noqa: BLE001
+            self._fall_back(exc)
+            return self.fn(*tensors)
+        self.backend = "compiled"
+        return tuple(t.clone() for t in result) if self.cuda_graphs else result
+
+    def _compiled_fn(self) -> Callable | None:
+        if not self._compile or self._compile_failed:
+            return None
+        if self._compiled is None:
+            try:
+                self._compiled = torch.compile(self.fn, dynamic=False, fullgraph=True, mode=self._mode,
+                                               options=INDUCTOR_OPTIONS)
+            except Exception as exc:  # noqa: BLE001 - e.g. no compiler backend: the eager function is the same
+                self._fall_back(exc)
+        return self._compiled
+
+    def _fall_back(self, exc: Exception) -> None:
+        reason = self._report("torch.compile", exc, "running the eager function (same numbers, slower on CPU)")
+        self.backend, self._compiled, self._compile_failed = f"eager (fallback: {reason})", None, True
+
+    def _report(self, what: str, exc: Exception, instead: str) -> str:
+        first_line = str(exc).splitlines()[0] if str(exc) else ""
+        reason = f"{type(exc).__name__}: {first_line}"[:200]
+        if (self.name, what, reason) not in Kernel._reported:
+            Kernel._reported.add((self.name, what, reason))
+            log.warning("aerobench: %s of the %s failed (%s); %s. AEROBENCH_COMPILE=0 skips the attempt.",
+                        what, self.name.replace("_", " "), reason, instead)
+        return reason

@@ -1,0 +1,79 @@
+"""The shared signals of a control step (`signals.shared_signals`): compiled as the eager function, for any scene's
+box count, with no host synchronization, and the same as the agent's and ManiSkill's own queries."""
+
+import gymnasium as gym
+import pytest
+import torch
+
+import aerobench.envs  # noqa: F401
+from aerobench.envs.geometry import body_points_to_world, min_distance_to_boxes
+from aerobench.envs.kernels import Kernel
+from aerobench.envs.signals import BOXES_INPUT, SharedSignals, signals_kernel
+from aerobench.policies import make_policy
+from tests.envs.host_sync import NoHostSync
+
+pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+
+
+def _held_step(env_id: str = "AeroPick-v1", **kwargs):
+    """An env a few steps after the expert confirmed its grasp (contacts on both fingers, the object off its support)."""
+    env = gym.make(env_id, num_envs=1, **kwargs)
+    obs, _ = env.reset(seed=0)
+    policy = make_policy("expert", env.unwrapped)
+    policy.reset(torch.arange(1))
+    for _ in range(300):
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        if bool(info["is_grasped"].all()) and float(info["lift_height"][0]) > 0.02:
+            return env
+        assert not bool(terminated.any() | truncated.any()), "the expert did not grasp"
+    raise AssertionError("the expert did not grasp in 300 steps")
+
+
+def test_compiled_signals_are_the_eager_ones_for_any_box_count(aot_cache):
+    env = _held_step()
+    base = env.unwrapped
+    tensors, _ = base.signal_inputs()
+    eager = base._signals_kernel.fn
+    kernel = Kernel(eager, "shared_signals", "test", [], "cpu", compile=True, dynamic={BOXES_INPUT: 1})
+    fewer = list(tensors)
+    fewer[BOXES_INPUT] = tensors[BOXES_INPUT][:, : tensors[BOXES_INPUT].shape[1] // 2]
+    for inputs in (tensors, fewer):  # one package serves both: the box count is a free dimension
+        compiled, reference = SharedSignals.from_flat(kernel(*inputs)), SharedSignals.from_flat(eager(*inputs))
+        assert kernel.backend == "compiled ahead of time", kernel.backend
+        for name, a, b in zip(SharedSignals._fields, compiled, reference):
+            # 1e-4: acos near 1 (a tilt of a few mrad) turns a float's last bit in R_zz into 2e-5 rad
+            torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-4, msg=name)
+    assert len(list((aot_cache / "shared_signals").glob("*.pt2"))) == 1
+    assert bool(SharedSignals.from_flat(eager(*tensors)).is_grasped.all())  # a step with the object in the jaws
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ["AeroPick-v1", "AeroNav-v1"])
+def test_the_shared_signals_make_no_host_sync(env_id):
+    env = gym.make(env_id, num_envs=1)
+    env.reset(seed=1)
+    base = env.unwrapped
+    tensors, _ = base.signal_inputs()
+    with NoHostSync():
+        out = SharedSignals.from_flat(signals_kernel(base._signals_kernel.fn.keywords["const"], "cpu", compile=False)(*tensors))
+    assert (out.object_rotation is None) == (base.target is None)
+    env.close()
+
+
+def test_the_step_context_is_the_agents_and_maniskills_own_queries():
+    env = _held_step()
+    base, agent = env.unwrapped, env.unwrapped.agent
+    base._signals_step = -1  # recompute this step's signals
+    info, ctx = base.evaluate(), base._ctx
+    state = agent.airframe_state()
+    torch.testing.assert_close(ctx.tcp_pose.raw_pose, agent.tcp_pose.raw_pose, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(ctx.state.rotation, state.rotation, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(ctx.state.position, state.position)
+    torch.testing.assert_close(ctx.gripper_opening, agent.finger_opening())
+    assert torch.equal(ctx.is_grasped, agent.is_grasping(base.target)) and bool(ctx.is_grasped.all())
+    torch.testing.assert_close(ctx.object_pose.raw_pose, base.target.pose.raw_pose)
+    points = body_points_to_world(base.proxy_points, state.position, state.rotation)
+    clearance = min_distance_to_boxes(points, base.obstacle_boxes()) - base.proxy_radius
+    torch.testing.assert_close(info["min_obstacle_clearance"], clearance, rtol=1e-5, atol=1e-6)
+    assert float(info["object_displacement"][0]) > 0.02  # lifted off its support
+    env.close()
