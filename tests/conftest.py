@@ -13,8 +13,9 @@ atexit.register(shutil.rmtree, _cache, ignore_errors=True)
 os.environ.setdefault("XDG_CACHE_HOME", _cache)
 os.environ.setdefault("MPLCONFIGDIR", os.path.join(_cache, "matplotlib"))
 os.environ.setdefault("HF_HOME", os.path.join(_cache, "huggingface"))
-# The eager physics step (same numbers) in every test process and the subprocesses it starts: loading the compiled
-# step costs each new process seconds; tests/envs/control/test_fused.py checks the compiled step against it.
+# The eager kernels (physics step, shared signals, pick expert: the same numbers) in every test process and the
+# subprocesses it starts: loading a compiled one costs each new process seconds; tests/envs/control/test_fused.py,
+# tests/envs/test_signals.py and tests/expert/test_pick_step.py check the compiled ones against them.
 os.environ.setdefault("AEROBENCH_COMPILE", "0")
 logging.getLogger("mani_skill").setLevel(logging.ERROR)
 
@@ -29,3 +30,16 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "gpu" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="module")
+def aot_cache(tmp_path_factory):
+    """One ahead-of-time package cache for this test run (never the user's), shared by pytest-xdist's workers so a
+    package is built once per run."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent / f"aerobench_cache_{run}" if run else base / "aerobench_cache"
+    root.mkdir(exist_ok=True)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("AEROBENCH_CACHE_DIR", str(root))
+        yield root

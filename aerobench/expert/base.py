@@ -165,10 +165,17 @@ class SkillExpert:
             yaw_rate = torch.clamp(yaw_gain * wrap_angle(yaw_target - state.yaw), -MAX_YAW_RATE_RPS, MAX_YAW_RATE_RPS)
         if yaw_rate_feedforward is not None:  # e.g. following a door that turns under the gripper
             yaw_rate = torch.clamp(yaw_rate + yaw_rate_feedforward, -MAX_YAW_RATE_RPS, MAX_YAW_RATE_RPS)
-        parts = [flight_action(velocity, yaw_rate)]
+        arm_action = None
         if self.has_arm:
             target = self.arm_rest.expand(self.n, 3) if arm_target is None else arm_target
-            parts.append(self.env.agent.body_controller.arm_action(target))
-        parts.append(gripper[:, None])
-        return torch.cat(parts, dim=-1)
+            arm_action = self.env.agent.body_controller.arm_action(target)
+        return expert_action(velocity, yaw_rate, gripper, arm_action)
+
+
+def expert_action(velocity: torch.Tensor, yaw_rate: torch.Tensor, gripper: torch.Tensor,
+                  arm_action: torch.Tensor | None = None) -> torch.Tensor:
+    """The normalized action `(N, 5)` (`(N, 8)` with the arm) of a commanded velocity (m/s), yaw rate (rad/s),
+    gripper (-1 closed) and normalized arm action."""
+    parts = [flight_action(velocity, yaw_rate)] + ([arm_action] if arm_action is not None else []) + [gripper[:, None]]
+    return torch.cat(parts, dim=-1)
 

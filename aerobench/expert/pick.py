@@ -12,24 +12,32 @@ backs away from where that stage left it and follows a planned route to a stagin
 that starts an episode flies straight to the pre-grasp point unless that line would take the drone into the scene
 (a start behind a counter's upstand, the hanging fingers below its top edge); then it follows a planned route too,
 from where it is.
+
+Its control step is one pure function of tensors (`pick_step`: transitions, targets, the action), so on a CPU it runs
+as one compiled call (`kernels.Kernel`) instead of about 300 small ops; the planning at a reset stays in Python.
 """
 
 from __future__ import annotations
 
 import math
 from enum import IntEnum
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
 
-from ..envs.control.arm import arm_point_positions_body
+from ..envs.control.arm import arm_point_positions_body, normalized_arm_action
+from ..envs.kernels import Kernel, compile_requested
 from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from ..envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M
-from .base import SkillExpert
-from .motion import TURN_TOLERANCE_RAD, wrap_angle
+from ..envs.skills.pick import pick_grasp_target
+from .base import SkillExpert, expert_action
+from .motion import TURN_TOLERANCE_RAD, velocity_towards, wrap_angle, yaw_rate_towards
 from .planner import MIN_VERTICAL_CLEARANCE_M, START_SKIP_M, planner_for, route_at_some_heading
-from .route import RouteFollower
+from .route import RouteFollower, route_target
 
 APPROACH_SPEED_MPS = 0.5
 ALIGN_TOLERANCE_M = 0.012  # at most; wide objects leave the open fingers only a few mm (master chef can: 4 mm)
@@ -159,7 +167,7 @@ class PickExpert(SkillExpert):
         `STAGING_M` (or the first of `STAGING_TRIES_M` with a route) before the pre-grasp point along the grasp
         heading (APPROACH flies the rest straight)."""
         state = self.state()
-        along = self._forward()
+        along = forward_of(self.heading)
         at_pre_grasp = self.pre_grasp(self.grasp_point()) - self._tcp_offset_at_heading()
         if first_move is None:
             yaw = state.yaw[env_idx]
@@ -185,132 +193,243 @@ class PickExpert(SkillExpert):
         ctx = self.env.current_step_context()
         return self.evaluator.grasp_target(ctx.tcp, ctx.object_pose, ctx.object_rotation)
 
-    def _forward(self) -> torch.Tensor:
-        return torch.stack([torch.cos(self.heading), torch.sin(self.heading), torch.zeros_like(self.heading)], -1)
-
     def _along(self, point: torch.Tensor) -> torch.Tensor:
-        return (point * self._forward()).sum(-1)
-
-    def entry_rise(self, grasp: torch.Tensor) -> torch.Tensor:
-        """`(N,)` how far above the grasp the arm's fingers go into an enclosure (0 elsewhere)."""
-        env = self.env
-        over_rim = self.object_position()[:, 2] + env.target_height - grasp[:, 2] + ENTER_ABOVE_RIM_M
-        rise = torch.where(env.target_grasps_rim, over_rim, torch.full_like(over_rim, ENTER_ABOVE_M))
-        return torch.where(self.evaluator.enclosed, rise, torch.zeros_like(rise)) if self.has_arm else torch.zeros_like(rise)
+        return along(point, forward_of(self.heading))
 
     def pre_grasp(self, grasp: torch.Tensor) -> torch.Tensor:
         env = self.env
-        top = self.object_position()[:, 2] + env.target_height
-        lift = (top - grasp[:, 2]).clamp_min(0.0) + ABOVE_OBJECT_M + 0.02  # finger tips sit 2 cm below the TCP
-        above = grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
-        if not self.has_arm:
-            return above
-        up = torch.zeros_like(grasp)
-        up[:, 2] = self.entry_rise(grasp)
-        side = grasp - SIDE_STANDOFF_M * self._forward() + up
-        return torch.where(self.reaches_in(self.evaluator)[:, None], side, above)
+        return pre_grasp_point(grasp, self.object_position()[:, 2], env.target_height, forward_of(self.heading),
+                               env.target_grasps_rim, self.evaluator.enclosed, self.has_arm)
 
     def _draw_back(self) -> torch.Tensor:
-        """`(N,)` how far a reach-in draws the object towards the front before lifting it: `ENCLOSED_LIFT_BACK_M`, and
-        for an object that droops the forearm no nearer than `DROOP_EDGE_KEEP_M` to the shelf board's front edge
-        (the support's sampling area stops `SUPPORT_EDGE_MARGIN_M` inside the board)."""
+        """`draw_back_m` of this step's object and this expert's plan."""
         support = self.env.supports[torch.arange(self.n, device=self.device), self.evaluator.support_index]
-        relative = self.heading - support[:, 5]
-        depth = (support[:, 2] * torch.cos(relative)).abs() + (support[:, 3] * torch.sin(relative)).abs()
-        centre = support[:, 0] * torch.cos(self.heading) + support[:, 1] * torch.sin(self.heading)
-        edge = centre - depth - SUPPORT_EDGE_MARGIN_M
-        room = (self._along(self.object_position()) - edge - DROOP_EDGE_KEEP_M).clamp(0.0, ENCLOSED_LIFT_BACK_M)
-        full = torch.full_like(room, ENCLOSED_LIFT_BACK_M)
-        return torch.where(self.forearm_droops(self.evaluator), room, full)
+        return draw_back_m(support, self.heading, self.object_position(), forward_of(self.heading),
+                           self.forearm_droops(self.evaluator))
+
+    def _kernel(self) -> Kernel:
+        """The compiled `pick_step` of this expert's law (whether it follows routes is part of it)."""
+        law = PickLaw(self.has_arm, self.routed, self.platform.arm, float(self.max_yaw_rate), float(self.yaw_gain))
+        compile = compile_requested()
+        key = (law, str(self.device), compile)
+        if key not in _KERNELS:
+            here = Path(__file__).resolve().parent
+            envs = here.parent / "envs"
+            sources = [here / "pick.py", here / "motion.py", here / "route.py", envs / "skills" / "pick.py",
+                       envs / "observations.py", envs / "platforms.py"]
+            _KERNELS[key] = Kernel(partial(_flat_pick_step, law=law), "pick_expert", law, sources, self.device, compile)
+        return _KERNELS[key]
+
+    def step_inputs(self) -> list[torch.Tensor]:
+        """This control step's tensors of `pick_step` (the env's step context and signals, the expert's memory, the
+        plan)."""
+        ctx, info, env, ev = self.env.current_step_context(), self.env.evaluate(), self.env, self.evaluator
+        rows = torch.arange(self.n, device=self.device)
+        arm = (self.arm_rest, self.arm_top_down, self.arm_params.lower, self.arm_params.upper) if self.has_arm else ()
+        return [
+            ctx.state.position, ctx.state.velocity, ctx.state.rotation, ctx.tcp, ctx.object_pose.p, ctx.object_rotation,
+            info["is_grasped"], info["lift_height"],
+            self.phase, self.timer, self.retries, self.lift_from, self.draw_back, self.drawn, self.turned, self.route.index,
+            ev.heading, ev.enclosed, env.supports[rows, ev.support_index], ev.clear_height(), env.target_height,
+            env.target_grasp_point, env.target_half_extent, env.target_grasps_rim, self.align_tolerance, self.deepest,
+            self.forearm_droops(ev), self.back_yaw, self.route.points, self.route.length, *arm,
+        ]
 
     def act(self) -> torch.Tensor:
-        P = PickPhase
-        info = self.env.evaluate()
-        state = self.state()
-        tcp = self.tcp()
-        grasp = self.grasp_point()
-        pre = self.pre_grasp(grasp)
-        speed = torch.linalg.norm(state.velocity, dim=-1)
-        yaw_ok = wrap_angle(self.heading - state.yaw).abs() < YAW_TOLERANCE_RAD
-        grasped = info["is_grasped"]
+        step = PickStep(*self._kernel()(*self.step_inputs()))
+        self.phase, self.timer, self.retries, self.lift_from = step.phase, step.timer, step.retries, step.lift_from
+        self.draw_back, self.drawn, self.turned, self.route.index = step.draw_back, step.drawn, step.turned, step.route_index
+        self.velocity_command = step.velocity
+        return step.action
 
-        # transitions
-        routing = self.in_phase(P.ROUTE)
-        if self.routed:
-            waypoint, last = self.route.target(state.position)
-            self.goto(P.ROUTE, last & (torch.linalg.norm(waypoint - state.position, dim=-1) < ROUTE_ARRIVED_M), P.APPROACH)
-        at_pre = torch.linalg.norm(tcp - pre, dim=-1) < 0.04
-        self.goto(P.APPROACH, at_pre, P.ALIGN)
-        aligned = (torch.linalg.norm((tcp - pre)[:, :2], dim=-1) < self.align_tolerance) & yaw_ok & (speed < SETTLED_MPS)
-        self.goto(P.ALIGN, aligned, P.DESCEND)
-        at_grasp = torch.linalg.norm(tcp - grasp, dim=-1) < AT_GRASP_M
-        self.goto(P.DESCEND, at_grasp & (speed < SETTLED_MPS), P.CLOSE)
-        confirmed = grasped & (self.timer >= GRASP_CONFIRM_STEPS)
-        started_lift = self.goto(P.CLOSE, confirmed, P.LIFT)
-        self.lift_from = torch.where(started_lift[:, None], tcp, self.lift_from)
-        self.draw_back = torch.where(started_lift, self._draw_back(), self.draw_back)
-        self.drawn &= ~started_lift
-        failed_close = self.in_phase(P.CLOSE) & (self.timer >= CLOSE_TIMEOUT_STEPS)
-        lost = (self.in_phase(P.LIFT) | self.in_phase(P.HOLD)) & ~grasped & (self.timer > GRASP_CONFIRM_STEPS)
-        retry = (failed_close | lost) & (self.retries < MAX_RETRIES)
-        self.retries = self.retries + retry.long()
-        self.phase = torch.where(retry, torch.full_like(self.phase, P.REOPEN), self.phase)
-        self.timer = torch.where(retry, torch.zeros_like(self.timer), self.timer)
-        lifted = info["lift_height"] >= 0.12
-        self.goto(P.LIFT, lifted, P.HOLD)
-        self.goto(P.REOPEN, self.timer >= 10, P.APPROACH)
-        self.advance_timer()
 
-        # commands per phase
-        phase = self.phase
-        if self.has_arm:  # into an enclosure: above the grasp until over it, and no deeper than planned
-            rise = self.entry_rise(grasp)
-            away = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > OVER_GRASP_M
-            lifted_grasp = grasp + torch.stack([torch.zeros_like(rise), torch.zeros_like(rise), rise * away], -1)
-            overreach = (self._along(lifted_grasp) - self.deepest).clamp_min(0.0) * self.evaluator.enclosed
-            grasp = lifted_grasp - overreach[:, None] * self._forward()
-        target = torch.where((phase == P.APPROACH)[:, None] | (phase == P.ALIGN)[:, None] | (phase == P.REOPEN)[:, None], pre, grasp)
-        headroom = self.evaluator.clear_height() - self.env.target_height - LIFT_HEADROOM_M
-        lift = headroom.clamp(max=LIFT_HEIGHT_M)
-        lift_target = self.lift_from + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
-        # Out of an enclosure the object is first drawn towards the front along the shelf, then lifted: the payload
-        # 0.47 m ahead pitches the airframe nose-down as it comes off the shelf (the arm's feedforward covers the
-        # arm's own weight only), and the drift that starts towards the fridge's front exceeds the disks' clearance.
-        # An object that droops the forearm is drawn less where it stands near the front: the droop drags it further
-        # back as it comes off the shelf, and a tomato soup can drawn the full 6 cm from 5 cm behind the edge swung
-        # over the edge and below the shelf (the spec's object-drop failure while still held; 4 of 9).
-        drawing = self.reaches_in(self.evaluator)
-        back = self.draw_back * drawing.float()
-        self.drawn |= (phase == P.LIFT) & (self._along(tcp) <= self._along(self.lift_from) - back + 0.01)
-        lift_target = lift_target - back[:, None] * self._forward()
-        lift_target[:, 2] = torch.where(drawing & ~self.drawn, self.lift_from[:, 2], lift_target[:, 2])
-        target = torch.where((phase == P.LIFT)[:, None] | (phase == P.HOLD)[:, None], lift_target, target)
-        # descend only while centred over the grasp: a drift pauses the descent until it is corrected
-        drift = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > self.align_tolerance
-        hold_height = (phase == P.DESCEND) & drift & ~self.reaches_in(self.evaluator)
-        target = torch.where(hold_height[:, None], torch.cat([grasp[:, :2], tcp[:, 2:]], -1), target)
-        near = torch.linalg.norm(tcp - grasp, dim=-1) < FINAL_ZONE_M
-        max_speed = torch.full((self.n,), APPROACH_SPEED_MPS, device=self.device)
-        max_speed = torch.where(phase == P.ALIGN, torch.full_like(max_speed, 0.2), max_speed)
-        max_speed = torch.where(phase == P.DESCEND, torch.where(near, FINAL_SPEED_MPS, DESCEND_SPEED_MPS), max_speed)
-        max_speed = torch.where((phase == P.CLOSE) | (phase == P.HOLD), torch.full_like(max_speed, 0.1), max_speed)
-        max_speed = torch.where(phase == P.LIFT, torch.full_like(max_speed, LIFT_SPEED_MPS), max_speed)
-        max_speed = torch.where(phase == P.REOPEN, torch.full_like(max_speed, 0.1), max_speed)
-        closed = (phase == P.CLOSE) | (phase == P.LIFT) | (phase == P.HOLD)
-        gripper = torch.where(closed, torch.full((self.n,), -1.0, device=self.device), torch.ones(self.n, device=self.device))
-        fine = (phase == P.ALIGN) | (phase == P.DESCEND) | (phase == P.CLOSE)
-        gain = torch.where(fine, FINE_GAIN, 1.2)
-        tracked, yaw = None, self.heading
-        if self.routed:  # on the route the airframe is driven to the waypoints
-            target = torch.where(routing[:, None], waypoint, target)
-            max_speed = torch.where(routing, torch.full_like(max_speed, ROUTE_SPEED_MPS), max_speed)
-            tracked = torch.where(routing[:, None], state.position, tcp)
-            backed_off = self.route.index > 0
-            yaw = torch.where(routing & ~backed_off, self.back_yaw, yaw)
-            self.turned |= backed_off & (wrap_angle(self.heading - state.yaw).abs() < TURN_TOLERANCE_RAD)
-            turning = routing & backed_off & ~self.turned
-            target = torch.where(turning[:, None], self.route.points[:, 0], target)
-        arm = self.pick_arm_pose(self.evaluator) if self.has_arm else None
-        return self.action(target, max_speed.clamp(max=MAX_SPEED_MPS), yaw, gripper, arm_target=arm, gain=gain,
-                           tracked=tracked)
+def forward_of(heading: torch.Tensor) -> torch.Tensor:
+    """`(N, 3)` the horizontal unit vector of `heading`."""
+    return torch.stack([torch.cos(heading), torch.sin(heading), torch.zeros_like(heading)], -1)
 
+
+def along(point: torch.Tensor, forward: torch.Tensor) -> torch.Tensor:
+    return (point * forward).sum(-1)
+
+
+def entry_rise(object_z: torch.Tensor, height: torch.Tensor, grasp: torch.Tensor, grasps_rim: torch.Tensor,
+               enclosed: torch.Tensor, has_arm: bool) -> torch.Tensor:
+    """`(N,)` how far above the grasp the arm's fingers go into an enclosure (0 elsewhere)."""
+    over_rim = object_z + height - grasp[:, 2] + ENTER_ABOVE_RIM_M
+    rise = torch.where(grasps_rim, over_rim, torch.full_like(over_rim, ENTER_ABOVE_M))
+    return torch.where(enclosed, rise, torch.zeros_like(rise)) if has_arm else torch.zeros_like(rise)
+
+
+def pre_grasp_point(grasp: torch.Tensor, object_z: torch.Tensor, height: torch.Tensor, forward: torch.Tensor,
+                    grasps_rim: torch.Tensor, enclosed: torch.Tensor, has_arm: bool) -> torch.Tensor:
+    """`(N, 3)` where the tool centre point stops before the grasp: above the object, or (the arm reaching into an
+    enclosure) `SIDE_STANDOFF_M` before the grasp along the heading, over the rim or the shelf board's edge."""
+    top = object_z + height
+    lift = (top - grasp[:, 2]).clamp_min(0.0) + ABOVE_OBJECT_M + 0.02  # finger tips sit 2 cm below the TCP
+    above = grasp + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+    if not has_arm:
+        return above
+    up = torch.zeros_like(grasp)
+    up[:, 2] = entry_rise(object_z, height, grasp, grasps_rim, enclosed, has_arm)
+    side = grasp - SIDE_STANDOFF_M * forward + up
+    return torch.where((enclosed & has_arm)[:, None], side, above)
+
+
+def draw_back_m(support: torch.Tensor, heading: torch.Tensor, object_p: torch.Tensor, forward: torch.Tensor,
+                droops: torch.Tensor) -> torch.Tensor:
+    """`(N,)` how far a reach-in draws the object towards the front before lifting it: `ENCLOSED_LIFT_BACK_M`, and
+    for an object that droops the forearm no nearer than `DROOP_EDGE_KEEP_M` to the shelf board's front edge (the
+    support's sampling area, a row of `env.supports`, stops `SUPPORT_EDGE_MARGIN_M` inside the board)."""
+    relative = heading - support[:, 5]
+    depth = (support[:, 2] * torch.cos(relative)).abs() + (support[:, 3] * torch.sin(relative)).abs()
+    centre = support[:, 0] * torch.cos(heading) + support[:, 1] * torch.sin(heading)
+    edge = centre - depth - SUPPORT_EDGE_MARGIN_M
+    room = (along(object_p, forward) - edge - DROOP_EDGE_KEEP_M).clamp(0.0, ENCLOSED_LIFT_BACK_M)
+    full = torch.full_like(room, ENCLOSED_LIFT_BACK_M)
+    return torch.where(droops, room, full)
+
+
+class PickLaw(NamedTuple):
+    """What fixes `pick_step` besides its tensors (hashable: a compiled kernel's key)."""
+
+    has_arm: bool
+    routed: bool  # whether any env may follow a route
+    arm: object  # the platform's ArmSpec (None: gripper)
+    max_yaw_rate: float
+    yaw_gain: float
+
+
+class PickStep(NamedTuple):
+    """The expert's memory after one control step, and its action."""
+
+    phase: torch.Tensor
+    timer: torch.Tensor
+    retries: torch.Tensor
+    lift_from: torch.Tensor
+    draw_back: torch.Tensor
+    drawn: torch.Tensor
+    turned: torch.Tensor
+    route_index: torch.Tensor
+    velocity: torch.Tensor  # the commanded velocity (m/s)
+    action: torch.Tensor
+
+
+def _goto(phase, timer, current: int, condition, new: int):
+    """Move envs in phase `current` where `condition` holds to `new` (timer restarts); also returns who moved."""
+    move = condition & (current == phase)
+    return torch.where(move, torch.full_like(phase, new), phase), torch.where(move, torch.zeros_like(timer), timer), move
+
+
+def pick_step(
+    position, velocity, rotation, tcp, object_p, object_R, is_grasped, lift_height,
+    phase, timer, retries, lift_from, draw_back, drawn, turned, route_index,
+    heading, enclosed, support, clear_height, height, grasp_point, half_extent, grasps_rim, align_tolerance, deepest,
+    droops, back_yaw, route_points, route_length, *arm: torch.Tensor, law: PickLaw,
+) -> PickStep:
+    """One control step of the pick expert as a pure function of tensors (`(N, ...)`; no branch on a tensor value):
+    this step's airframe state, tool centre point, object pose and grasp signals, the expert's memory, and the
+    episode's plan (`PickEvaluator`'s heading and support, the object's geometry, the route). `arm`: the arm
+    platform's rest and top-down poses and joint limits."""
+    P = PickPhase
+    has_arm = law.has_arm
+    yaw = torch.atan2(rotation[..., 1, 0], rotation[..., 0, 0])
+    forward = forward_of(heading)
+    grasp = pick_grasp_target(tcp, object_p, object_R, heading, enclosed, grasp_point, height, half_extent, grasps_rim,
+                              law.arm)
+    pre = pre_grasp_point(grasp, object_p[:, 2], height, forward, grasps_rim, enclosed, has_arm)
+    speed = torch.linalg.norm(velocity, dim=-1)
+    yaw_ok = wrap_angle(heading - yaw).abs() < YAW_TOLERANCE_RAD
+    grasped = is_grasped
+    reaches_in = enclosed & has_arm
+
+    # transitions
+    routing = phase == P.ROUTE
+    if law.routed:
+        waypoint, last, route_index = route_target(route_points, route_length, route_index, position)
+        phase, timer, _ = _goto(phase, timer, P.ROUTE,
+                                last & (torch.linalg.norm(waypoint - position, dim=-1) < ROUTE_ARRIVED_M), P.APPROACH)
+    at_pre = torch.linalg.norm(tcp - pre, dim=-1) < 0.04
+    phase, timer, _ = _goto(phase, timer, P.APPROACH, at_pre, P.ALIGN)
+    aligned = (torch.linalg.norm((tcp - pre)[:, :2], dim=-1) < align_tolerance) & yaw_ok & (speed < SETTLED_MPS)
+    phase, timer, _ = _goto(phase, timer, P.ALIGN, aligned, P.DESCEND)
+    at_grasp = torch.linalg.norm(tcp - grasp, dim=-1) < AT_GRASP_M
+    phase, timer, _ = _goto(phase, timer, P.DESCEND, at_grasp & (speed < SETTLED_MPS), P.CLOSE)
+    confirmed = grasped & (timer >= GRASP_CONFIRM_STEPS)
+    phase, timer, started_lift = _goto(phase, timer, P.CLOSE, confirmed, P.LIFT)
+    lift_from = torch.where(started_lift[:, None], tcp, lift_from)
+    draw_back = torch.where(started_lift, draw_back_m(support, heading, object_p, forward, droops), draw_back)
+    drawn = drawn & ~started_lift
+    failed_close = (phase == P.CLOSE) & (timer >= CLOSE_TIMEOUT_STEPS)
+    lost = ((phase == P.LIFT) | (phase == P.HOLD)) & ~grasped & (timer > GRASP_CONFIRM_STEPS)
+    retry = (failed_close | lost) & (retries < MAX_RETRIES)
+    retries = retries + retry.long()
+    phase = torch.where(retry, torch.full_like(phase, P.REOPEN), phase)
+    timer = torch.where(retry, torch.zeros_like(timer), timer)
+    lifted = lift_height >= 0.12
+    phase, timer, _ = _goto(phase, timer, P.LIFT, lifted, P.HOLD)
+    phase, timer, _ = _goto(phase, timer, P.REOPEN, timer >= 10, P.APPROACH)
+    timer = timer + 1
+
+    # commands per phase
+    if has_arm:  # into an enclosure: above the grasp until over it, and no deeper than planned
+        rise = entry_rise(object_p[:, 2], height, grasp, grasps_rim, enclosed, has_arm)
+        away = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > OVER_GRASP_M
+        lifted_grasp = grasp + torch.stack([torch.zeros_like(rise), torch.zeros_like(rise), rise * away], -1)
+        overreach = (along(lifted_grasp, forward) - deepest).clamp_min(0.0) * enclosed
+        grasp = lifted_grasp - overreach[:, None] * forward
+    target = torch.where((phase == P.APPROACH)[:, None] | (phase == P.ALIGN)[:, None] | (phase == P.REOPEN)[:, None], pre, grasp)
+    headroom = clear_height - height - LIFT_HEADROOM_M
+    lift = headroom.clamp(max=LIFT_HEIGHT_M)
+    lift_target = lift_from + torch.stack([torch.zeros_like(lift), torch.zeros_like(lift), lift], -1)
+    # Out of an enclosure the object is first drawn towards the front along the shelf, then lifted: the payload
+    # 0.47 m ahead pitches the airframe nose-down as it comes off the shelf (the arm's feedforward covers the
+    # arm's own weight only), and the drift that starts towards the fridge's front exceeds the disks' clearance.
+    # An object that droops the forearm is drawn less where it stands near the front: the droop drags it further
+    # back as it comes off the shelf, and a tomato soup can drawn the full 6 cm from 5 cm behind the edge swung
+    # over the edge and below the shelf (the spec's object-drop failure while still held; 4 of 9).
+    back = draw_back * reaches_in.float()
+    drawn = drawn | ((phase == P.LIFT) & (along(tcp, forward) <= along(lift_from, forward) - back + 0.01))
+    lift_target = lift_target - back[:, None] * forward
+    lift_z = torch.where(reaches_in & ~drawn, lift_from[:, 2], lift_target[:, 2])
+    lift_target = torch.cat([lift_target[:, :2], lift_z[:, None]], -1)
+    target = torch.where((phase == P.LIFT)[:, None] | (phase == P.HOLD)[:, None], lift_target, target)
+    # descend only while centred over the grasp: a drift pauses the descent until it is corrected
+    drift = torch.linalg.norm((tcp - grasp)[:, :2], dim=-1) > align_tolerance
+    hold_height = (phase == P.DESCEND) & drift & ~reaches_in
+    target = torch.where(hold_height[:, None], torch.cat([grasp[:, :2], tcp[:, 2:]], -1), target)
+    near = torch.linalg.norm(tcp - grasp, dim=-1) < FINAL_ZONE_M
+    max_speed = torch.full_like(speed, APPROACH_SPEED_MPS)
+    max_speed = torch.where(phase == P.ALIGN, torch.full_like(max_speed, 0.2), max_speed)
+    max_speed = torch.where(phase == P.DESCEND, torch.where(near, FINAL_SPEED_MPS, DESCEND_SPEED_MPS), max_speed)
+    max_speed = torch.where((phase == P.CLOSE) | (phase == P.HOLD), torch.full_like(max_speed, 0.1), max_speed)
+    max_speed = torch.where(phase == P.LIFT, torch.full_like(max_speed, LIFT_SPEED_MPS), max_speed)
+    max_speed = torch.where(phase == P.REOPEN, torch.full_like(max_speed, 0.1), max_speed)
+    closed = (phase == P.CLOSE) | (phase == P.LIFT) | (phase == P.HOLD)
+    gripper = torch.where(closed, torch.full_like(speed, -1.0), torch.ones_like(speed))
+    fine = (phase == P.ALIGN) | (phase == P.DESCEND) | (phase == P.CLOSE)
+    gain = torch.where(fine, FINE_GAIN, 1.2)
+    point, yaw_target = tcp, heading
+    if law.routed:  # on the route the airframe is driven to the waypoints
+        target = torch.where(routing[:, None], waypoint, target)
+        max_speed = torch.where(routing, torch.full_like(max_speed, ROUTE_SPEED_MPS), max_speed)
+        point = torch.where(routing[:, None], position, tcp)
+        backed_off = route_index > 0
+        yaw_target = torch.where(routing & ~backed_off, back_yaw, yaw_target)
+        turned = turned | (backed_off & (wrap_angle(heading - yaw).abs() < TURN_TOLERANCE_RAD))
+        turning = routing & backed_off & ~turned
+        target = torch.where(turning[:, None], route_points[:, 0], target)
+    velocity_cmd = velocity_towards((target - point) * gain[:, None], max_speed.clamp(max=MAX_SPEED_MPS), gain=1.0)
+    yaw_rate = yaw_rate_towards(yaw, yaw_target, law.max_yaw_rate, law.yaw_gain)
+    arm_action = None
+    if has_arm:
+        rest, top_down, lower, upper = arm
+        arm_action = normalized_arm_action(torch.where(reaches_in[:, None], rest, top_down), lower, upper)
+    action = expert_action(velocity_cmd, yaw_rate, gripper, arm_action)
+    return PickStep(phase, timer, retries, lift_from, draw_back, drawn, turned, route_index, velocity_cmd, action)
+
+
+def _flat_pick_step(*tensors: torch.Tensor, law: PickLaw) -> tuple[torch.Tensor, ...]:
+    return tuple(pick_step(*tensors, law=law))
+
+
+_KERNELS: dict[tuple, Kernel] = {}  # per law, device and whether compiled: one per process

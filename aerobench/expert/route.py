@@ -23,10 +23,19 @@ class RouteFollower:
 
     def target(self, position: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Current waypoint `(N, 3)` after passing reached intermediate ones, and whether it is the last `(N,)`."""
-        rows = torch.arange(self.points.shape[0], device=self.points.device)
-        last = self.index >= self.length - 1
-        current = self.points[rows, self.index.clamp(max=self.capacity - 1)]
-        passed = (~last) & (torch.linalg.norm(position - current, dim=-1) < PASS_RADIUS_M)
-        self.index = self.index + passed.long()
-        current = self.points[rows, self.index.clamp(max=self.capacity - 1)]
-        return current, self.index >= self.length - 1
+        current, last, self.index = route_target(self.points, self.length, self.index, position)
+        return current, last
+
+
+def route_target(points: torch.Tensor, length: torch.Tensor, index: torch.Tensor, position: torch.Tensor
+                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """`RouteFollower.target` as a pure function: the current waypoint `(N, 3)`, whether it is the last `(N,)` and the
+    advanced pointer, from the routes `points` `(N, C, 3)`, their `length` and pointer `index` `(N,)`."""
+    rows = torch.arange(points.shape[0], device=points.device)
+    capacity = points.shape[1]
+    last = index >= length - 1
+    current = points[rows, index.clamp(max=capacity - 1)]
+    passed = (~last) & (torch.linalg.norm(position - current, dim=-1) < PASS_RADIUS_M)
+    index = index + passed.long()
+    current = points[rows, index.clamp(max=capacity - 1)]
+    return current, index >= length - 1, index

@@ -16,6 +16,7 @@ import torch
 from gymnasium import spaces
 from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
 
+from ..control.arm import normalized_arm_action
 from ..control.flight import FlightMemory, FlightOutput
 from ..control.fused import fused_physics_step
 from ..control.payload import ControllerMode, update_payload_estimate
@@ -85,7 +86,7 @@ class AerialBodyController(BaseController):
 
     def arm_action(self, q_arm: torch.Tensor) -> torch.Tensor:
         """The normalized arm action that commands joint targets `q_arm` (inverse of the mapping in `set_action`)."""
-        return 2.0 * (q_arm - self.arm.lower) / (self.arm.upper - self.arm.lower) - 1.0
+        return normalized_arm_action(q_arm, self.arm.lower, self.arm.upper)
 
     def set_action(self, action: torch.Tensor):
         action = self._preprocess_action(action)

@@ -132,3 +132,9 @@ def arm_servo_torques(
     tau = torch.maximum(torch.minimum(tau, params.torque_limit), -params.torque_limit)
     tau[:, SHOULDER] = torch.where(contact_mode, torch.zeros_like(tau[:, SHOULDER]), tau[:, SHOULDER])
     return tau
+
+
+def normalized_arm_action(q_arm: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
+    """The normalized arm action in [-1, 1] that commands joint targets `q_arm` within `[lower, upper]` (the inverse of
+    the body controller's mapping of its action)."""
+    return 2.0 * (q_arm - lower) / (upper - lower) - 1.0

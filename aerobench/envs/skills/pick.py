@@ -62,6 +62,35 @@ def grasp_heading(object_yaw: torch.Tensor, current_yaw: torch.Tensor, is_round:
     return torch.where(is_round, axis_aligned, across)
 
 
+def pick_grasp_target(
+    tcp: torch.Tensor, position: torch.Tensor, R: torch.Tensor, heading: torch.Tensor, enclosed: torch.Tensor,
+    grasp_point: torch.Tensor, height: torch.Tensor, half_extent: torch.Tensor, grasps_rim: torch.Tensor, arm=None,
+) -> torch.Tensor:
+    """Where the tool centre point grasps `(N, 3)`: the object's planned grasp point (`grasp_point` in its frame, the
+    object at `position` with rotation `R`); for the bowl (`grasps_rim`), the rim point whose radial direction is the
+    closing axis (body y) of the planned `heading`, on the side nearer `tcp`. `arm`: the platform's `ArmSpec` (None
+    for the gripper). A pure function of tensors (the pick expert's compiled step computes it too)."""
+    planned = position + (R @ grasp_point[..., None])[..., 0]
+    if arm is not None:  # top down (everywhere but an enclosure), the arm's palm clear of the object's top
+        above_palm = height - grasp_point[:, 2] - (arm.palm_to_grasp_m - TOP_DOWN_PALM_MARGIN_M)
+        planned = planned + torch.stack([torch.zeros_like(above_palm), torch.zeros_like(above_palm),
+                                         above_palm.clamp_min(0.0) * ~enclosed], -1)
+    zero = torch.zeros_like(heading)
+    if arm is not None:
+        # Reaching in, the palm meets the object's near face the same way: a box deeper along the approach than
+        # twice the palm's 6 cm (the cracker box, 15.8 cm) stopped it 2 cm short of the centre (a collision at every
+        # insertion), so the grasp point is drawn back until the palm keeps the same margin off the face. This
+        # moves arm-platform grasps from a fridge shelf only (no learned policy is trained on them).
+        behind = (half_extent[:, 1] - (arm.palm_to_grasp_m - TOP_DOWN_PALM_MARGIN_M)).clamp_min(0.0)
+        forward = torch.stack([torch.cos(heading), torch.sin(heading), zero], -1)
+        planned = planned - (behind * enclosed)[:, None] * forward
+    radial = torch.stack([-torch.sin(heading), torch.cos(heading), zero], -1)
+    side = torch.sign((radial * (tcp - position)).sum(-1, keepdim=True) + 1e-9)
+    g = grasp_point  # a rim grasp's pinch point: rim radius (x) and height above the bottom (z)
+    rim = position + g[:, :1] * side * radial + torch.stack([zero, zero, g[:, 2]], -1)
+    return torch.where(grasps_rim[:, None], rim, planned)
+
+
 class PickEvaluator(SkillEvaluator):
     skill = "pick"
 
@@ -164,31 +193,13 @@ class PickEvaluator(SkillEvaluator):
         return torch.where(room[:, 0] >= TOP_DOWN_ROOM_M, planned, best)
 
     def grasp_target(self, tcp: torch.Tensor, pose: Pose | None = None, R: torch.Tensor | None = None) -> torch.Tensor:
-        """Where the tool centre point grasps `(N, 3)`: the object's planned grasp point; for the bowl, the rim point
-        whose radial direction is the closing axis (body y) of the planned heading, on the side nearer `tcp`. `pose` and
+        """Where the tool centre point grasps `(N, 3)` (`pick_grasp_target` of this env's object and plan). `pose` and
         its rotation matrix `R`: the object's, where the caller has them from this step's context."""
         pose = self.env.target.pose if pose is None else pose
         R = quat_wxyz_to_matrix(pose.q) if R is None else R
-        planned = pose.p + (R @ self.env.target_grasp_point[..., None])[..., 0]
-        arm = self.env.platform.arm
-        if arm is not None:  # top down (everywhere but an enclosure), the arm's palm clear of the object's top
-            above_palm = self.env.target_height - self.env.target_grasp_point[:, 2] - (arm.palm_to_grasp_m - TOP_DOWN_PALM_MARGIN_M)
-            planned = planned + torch.stack([torch.zeros_like(above_palm), torch.zeros_like(above_palm),
-                                             above_palm.clamp_min(0.0) * ~self.enclosed], -1)
-        zero = torch.zeros_like(self.heading)
-        if arm is not None:
-            # Reaching in, the palm meets the object's near face the same way: a box deeper along the approach than
-            # twice the palm's 6 cm (the cracker box, 15.8 cm) stopped it 2 cm short of the centre (a collision at every
-            # insertion), so the grasp point is drawn back until the palm keeps the same margin off the face. This
-            # moves arm-platform grasps from a fridge shelf only (no learned policy is trained on them).
-            behind = (self.env.target_half_extent[:, 1] - (arm.palm_to_grasp_m - TOP_DOWN_PALM_MARGIN_M)).clamp_min(0.0)
-            forward = torch.stack([torch.cos(self.heading), torch.sin(self.heading), zero], -1)
-            planned = planned - (behind * self.enclosed)[:, None] * forward
-        radial = torch.stack([-torch.sin(self.heading), torch.cos(self.heading), zero], -1)
-        side = torch.sign((radial * (tcp - pose.p)).sum(-1, keepdim=True) + 1e-9)
-        g = self.env.target_grasp_point  # a rim grasp's pinch point: rim radius (x) and height above the bottom (z)
-        rim = pose.p + g[:, :1] * side * radial + torch.stack([zero, zero, g[:, 2]], -1)
-        return torch.where(self.env.target_grasps_rim[:, None], rim, planned)
+        env = self.env
+        return pick_grasp_target(tcp, pose.p, R, self.heading, self.enclosed, env.target_grasp_point, env.target_height,
+                                 env.target_half_extent, env.target_grasps_rim, env.platform.arm)
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(

@@ -1,0 +1,56 @@
+"""The pick expert's control step (`expert.pick.pick_step`): compiled as the eager function, on both platforms and
+with the route follower, and with no host synchronization."""
+
+from functools import partial
+
+import gymnasium as gym
+import pytest
+import torch
+
+import aerobench.envs  # noqa: F401
+from aerobench.envs.kernels import Kernel
+from aerobench.expert.pick import PickLaw, PickPhase, PickStep, _flat_pick_step
+from aerobench.policies import make_policy
+from tests.envs.host_sync import NoHostSync
+
+pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+
+
+def _expert_in_phase(platform: str, phase: PickPhase, seed: int = 0, steps: int = 300):
+    env = gym.make("AeroPick-v1", num_envs=1, platform=platform)
+    obs, _ = env.reset(seed=seed)
+    policy = make_policy("expert", env.unwrapped)
+    policy.reset(torch.arange(1))
+    expert = policy.controller.experts[0]
+    for _ in range(steps):
+        if int(expert.phase[0]) == phase:
+            return env, expert
+        obs, *_ = env.step(policy.act(obs))
+    raise AssertionError(f"the expert never reached {phase.name}")
+
+
+# one package per case (about 20 s to build): the route follower's pointer with the gripper, the arm's reach without
+@pytest.mark.parametrize("platform, seed, phase, routed",
+                         [("gripper", 0, PickPhase.DESCEND, True), ("arm", 5, PickPhase.LIFT, False)])
+def test_the_compiled_pick_step_is_the_eager_one(platform, seed, phase, routed):
+    env, expert = _expert_in_phase(platform, phase, seed)
+    tensors = expert.step_inputs()
+    law = PickLaw(expert.has_arm, routed, expert.platform.arm, float(expert.max_yaw_rate), float(expert.yaw_gain))
+    eager = Kernel(partial(_flat_pick_step, law=law), "pick_expert", law, [], "cpu", compile=False)
+    compiled = Kernel(partial(_flat_pick_step, law=law), "pick_expert", law, [], "cpu", compile=True)
+    a, b = PickStep(*compiled(*tensors)), PickStep(*eager(*tensors))
+    assert compiled.backend == "compiled ahead of time", compiled.backend
+    for name, x, y in zip(PickStep._fields, a, b):
+        torch.testing.assert_close(x, y, rtol=1e-5, atol=1e-5, msg=name)
+    assert int(b.phase[0]) in (phase, phase + 1)  # a real step of that phase (it may move on)
+    env.close()
+
+
+def test_the_pick_step_makes_no_host_sync():
+    env, expert = _expert_in_phase("gripper", PickPhase.ALIGN)
+    tensors = expert.step_inputs()
+    law = PickLaw(False, True, None, float(expert.max_yaw_rate), float(expert.yaw_gain))
+    with NoHostSync():
+        action = PickStep(*_flat_pick_step(*tensors, law=law)).action
+    assert action.shape == (1, env.unwrapped.platform.action_dim)
+    env.close()
