@@ -55,17 +55,9 @@ def timed(owner, name: str, label: str, spent: dict[str, float]) -> None:
     setattr(owner, name, wrapper)
 
 
-def breakdown(env_id: str, steps: int, expert: bool) -> tuple[float, dict[str, float]]:
-    """(microseconds per control step, {part: microseconds per control step})."""
-    env = gym.make(env_id, num_envs=1, obs_mode="state")
-    obs, _ = env.reset(seed=SEED, options={"reconfigure": True})
-    base = env.unwrapped
-    policy = make_policy("expert", base) if expert else None
-    if policy is not None:
-        policy.reset(torch.arange(1))
-    hover = torch.zeros(1, base.platform.action_dim)
-    hover[:, -1] = -1.0 if env_id == "AeroPlace-v1" else 1.0
-    spent: dict[str, float] = defaultdict(float)
+def instrument(base, policy, spent: dict[str, float]) -> None:
+    """Time the parts of `base`'s step (and `policy.act`) into `spent`. A reset that rebuilds the scene (one CPU env
+    gets a new layout per episode) brings a new agent, scene, contact reader and evaluators: instrument again."""
     timed(base.agent, "set_action", ACTION, spent)
     timed(base.agent, "before_simulation_step", CONTROLLER, spent)
     timed(base.scene, "step", PHYSX, spent)
@@ -73,10 +65,31 @@ def breakdown(env_id: str, steps: int, expert: bool) -> tuple[float, dict[str, f
     if hasattr(base, "step_context"):
         timed(base, "step_context", CONTEXT, spent)
         timed(base.contacts, "read", CONTACTS, spent)
-        timed(base, "_signals_kernel", SIGNALS, spent)
+        if hasattr(base, "_signals_kernel"):  # (an older tree, for before/after runs, has none)
+            timed(base, "_signals_kernel", SIGNALS, spent)
     timed(base, "get_obs", OBSERVATION, spent)
     if policy is not None:
         timed(policy, "act", EXPERT, spent)
+
+
+def breakdown(env_id: str, steps: int, expert: bool) -> tuple[float, dict[str, float]]:
+    """(microseconds per control step, {part: microseconds per control step})."""
+    env = gym.make(env_id, num_envs=1, obs_mode="state")
+    base = env.unwrapped
+    hover = torch.zeros(1, base.platform.action_dim)
+    hover[:, -1] = -1.0 if env_id == "AeroPlace-v1" else 1.0
+    spent: dict[str, float] = defaultdict(float)
+    obs, policy = None, None
+
+    def reset() -> None:
+        nonlocal obs, policy
+        for name in ("evaluate", "step_context", "_signals_kernel", "get_obs"):  # the env's own: unwrap before reset
+            base.__dict__.pop(name, None)
+        obs, _ = env.reset(seed=SEED, options={"reconfigure": True})
+        policy = make_policy("expert", base) if expert else None  # as the rollout runner: a policy per episode
+        if policy is not None:
+            policy.reset(torch.arange(1))
+        instrument(base, policy, spent)
 
     def run(n: int) -> float:
         nonlocal obs
@@ -87,14 +100,13 @@ def breakdown(env_id: str, steps: int, expert: bool) -> tuple[float, dict[str, f
             total += time.perf_counter() - t0
             if bool(terminated.any() | truncated.any()):  # a reset is not a control step: its parts are not counted
                 kept = dict(spent)
-                obs, _ = env.reset(seed=SEED)
-                if policy is not None:
-                    policy.reset(torch.arange(1))
+                reset()
                 spent.clear()
                 spent.update(kept)
         return total
 
-    run(10)  # warm-up (the compiled step loads, caches fill)
+    reset()
+    run(10)  # warm-up (the compiled kernels load, caches fill)
     spent.clear()
     total = run(steps)
     env.close()
