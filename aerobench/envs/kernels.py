@@ -128,7 +128,7 @@ class Kernel:
                  shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None):
         self.fn, self.name, self.dynamic = fn, name, dynamic
         self._key, self._sources = key, tuple(sources)
-        self._shape_key = shape_key or (lambda tensors: tuple(t.shape for t in tensors))
+        self._shape_key = shape_key or self._free_shapes
         self.backend = "not run yet" if compile else "eager"
         self._compile = compile
         self._mode = os.environ.get("AEROBENCH_COMPILE_MODE") or None
@@ -139,7 +139,15 @@ class Kernel:
         self.aot_ok = compile and str(device) == "cpu" and self._mode is None
         self._fast: tuple[object, Callable] | None = None  # the package for the shapes seen last
 
+    def _free_shapes(self, tensors: tuple[torch.Tensor, ...]) -> tuple:
+        """The input shapes, a free dimension left out: one package (loaded once) serves every size of it."""
+        free = self.dynamic or {}
+        return tuple(tuple(t.shape) if i not in free else tuple(t.shape[:free[i]]) + tuple(t.shape[free[i] + 1:])
+                     for i, t in enumerate(tensors))
+
     def __call__(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...] | list[torch.Tensor]:
+        if not self._compile:
+            return self.fn(*tensors)
         shapes = self._shape_key(tensors)
         fast = self._fast
         if fast is not None and shapes == fast[0]:
