@@ -118,9 +118,7 @@ class SkillExpert:
 
     def goto(self, phase: torch.Tensor, condition: torch.Tensor, new_phase: int) -> torch.Tensor:
         """Move envs in `phase` where `condition` holds to `new_phase` (timer restarts)."""
-        move = condition & (phase == self.phase)
-        self.phase = torch.where(move, torch.full_like(self.phase, new_phase), self.phase)
-        self.timer = torch.where(move, torch.zeros_like(self.timer), self.timer)
+        self.phase, self.timer, move = goto_phase(self.phase, self.timer, phase, condition, new_phase)
         return move
 
     def in_phase(self, value: int) -> torch.Tensor:
@@ -148,12 +146,8 @@ class SkillExpert:
         `tracked` `(N, 3)` replaces the tool centre point as the point driven to the target (e.g. the airframe).
         `max_accel` (m/s^2) bounds how fast the velocity command may change from the last one (a ramp, not a step)."""
         state = self.state()
-        gain = torch.as_tensor(gain, dtype=torch.float32, device=self.device)
         point = self.tcp() if tracked is None else tracked
-        velocity = velocity_towards((tcp_target - point) * (gain[:, None] if gain.dim() else gain), max_speed, gain=1.0)
-        if velocity_override is not None:  # (mask (N,), velocity (N, 3)): commanded directly where masked
-            mask, direct = velocity_override
-            velocity = torch.where(mask[:, None], direct, velocity)
+        velocity = tracking_velocity(point, tcp_target, max_speed, gain, velocity_override)
         if max_accel is not None:
             change = velocity - self.velocity_command
             norm = torch.linalg.norm(change, dim=-1, keepdim=True)
@@ -170,6 +164,26 @@ class SkillExpert:
             target = self.arm_rest.expand(self.n, 3) if arm_target is None else arm_target
             arm_action = self.env.agent.body_controller.arm_action(target)
         return expert_action(velocity, yaw_rate, gripper, arm_action)
+
+
+def goto_phase(phase: torch.Tensor, timer: torch.Tensor, current: int, condition: torch.Tensor, new: int
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Move envs in phase `current` where `condition` holds to `new`, their timer restarted: the new phase and timer,
+    and who moved."""
+    move = condition & (current == phase)
+    return torch.where(move, torch.full_like(phase, new), phase), torch.where(move, torch.zeros_like(timer), timer), move
+
+
+def tracking_velocity(point: torch.Tensor, target: torch.Tensor, max_speed: torch.Tensor, gain: torch.Tensor | float,
+                      override: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+    """The velocity `(N, 3)` that drives `point` to `target` with position `gain` (1/s, scalar or `(N,)`) under
+    `max_speed`; `override` (mask (N,), velocity (N, 3)) is commanded directly where masked."""
+    gain = torch.as_tensor(gain, dtype=torch.float32, device=point.device)
+    velocity = velocity_towards((target - point) * (gain[:, None] if gain.dim() else gain), max_speed, gain=1.0)
+    if override is not None:
+        mask, direct = override
+        velocity = torch.where(mask[:, None], direct, velocity)
+    return velocity
 
 
 def expert_action(velocity: torch.Tensor, yaw_rate: torch.Tensor, gripper: torch.Tensor,

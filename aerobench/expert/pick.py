@@ -34,8 +34,8 @@ from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from ..envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M
 from ..envs.skills.pick import pick_grasp_target
-from .base import SkillExpert, expert_action
-from .motion import TURN_TOLERANCE_RAD, velocity_towards, wrap_angle, yaw_rate_towards
+from .base import SkillExpert, expert_action, goto_phase, tracking_velocity
+from .motion import TURN_TOLERANCE_RAD, wrap_angle, yaw_rate_towards
 from .planner import MIN_VERTICAL_CLEARANCE_M, START_SKIP_M, planner_for, route_at_some_heading
 from .route import RouteFollower, route_target
 
@@ -314,12 +314,6 @@ class PickStep(NamedTuple):
     action: torch.Tensor
 
 
-def _goto(phase, timer, current: int, condition, new: int):
-    """Move envs in phase `current` where `condition` holds to `new` (timer restarts); also returns who moved."""
-    move = condition & (current == phase)
-    return torch.where(move, torch.full_like(phase, new), phase), torch.where(move, torch.zeros_like(timer), timer), move
-
-
 def pick_step(
     position, velocity, rotation, tcp, object_p, object_R, is_grasped, lift_height,
     phase, timer, retries, lift_from, draw_back, drawn, turned, route_index,
@@ -346,16 +340,16 @@ def pick_step(
     routing = phase == P.ROUTE
     if law.routed:
         waypoint, last, route_index = route_target(route_points, route_length, route_index, position)
-        phase, timer, _ = _goto(phase, timer, P.ROUTE,
+        phase, timer, _ = goto_phase(phase, timer, P.ROUTE,
                                 last & (torch.linalg.norm(waypoint - position, dim=-1) < ROUTE_ARRIVED_M), P.APPROACH)
     at_pre = torch.linalg.norm(tcp - pre, dim=-1) < 0.04
-    phase, timer, _ = _goto(phase, timer, P.APPROACH, at_pre, P.ALIGN)
+    phase, timer, _ = goto_phase(phase, timer, P.APPROACH, at_pre, P.ALIGN)
     aligned = (torch.linalg.norm((tcp - pre)[:, :2], dim=-1) < align_tolerance) & yaw_ok & (speed < SETTLED_MPS)
-    phase, timer, _ = _goto(phase, timer, P.ALIGN, aligned, P.DESCEND)
+    phase, timer, _ = goto_phase(phase, timer, P.ALIGN, aligned, P.DESCEND)
     at_grasp = torch.linalg.norm(tcp - grasp, dim=-1) < AT_GRASP_M
-    phase, timer, _ = _goto(phase, timer, P.DESCEND, at_grasp & (speed < SETTLED_MPS), P.CLOSE)
+    phase, timer, _ = goto_phase(phase, timer, P.DESCEND, at_grasp & (speed < SETTLED_MPS), P.CLOSE)
     confirmed = grasped & (timer >= GRASP_CONFIRM_STEPS)
-    phase, timer, started_lift = _goto(phase, timer, P.CLOSE, confirmed, P.LIFT)
+    phase, timer, started_lift = goto_phase(phase, timer, P.CLOSE, confirmed, P.LIFT)
     lift_from = torch.where(started_lift[:, None], tcp, lift_from)
     draw_back = torch.where(started_lift, draw_back_m(support, heading, object_p, forward, droops), draw_back)
     drawn = drawn & ~started_lift
@@ -366,8 +360,8 @@ def pick_step(
     phase = torch.where(retry, torch.full_like(phase, P.REOPEN), phase)
     timer = torch.where(retry, torch.zeros_like(timer), timer)
     lifted = lift_height >= 0.12
-    phase, timer, _ = _goto(phase, timer, P.LIFT, lifted, P.HOLD)
-    phase, timer, _ = _goto(phase, timer, P.REOPEN, timer >= 10, P.APPROACH)
+    phase, timer, _ = goto_phase(phase, timer, P.LIFT, lifted, P.HOLD)
+    phase, timer, _ = goto_phase(phase, timer, P.REOPEN, timer >= 10, P.APPROACH)
     timer = timer + 1
 
     # commands per phase
@@ -418,7 +412,7 @@ def pick_step(
         turned = turned | (backed_off & (wrap_angle(heading - yaw).abs() < TURN_TOLERANCE_RAD))
         turning = routing & backed_off & ~turned
         target = torch.where(turning[:, None], route_points[:, 0], target)
-    velocity_cmd = velocity_towards((target - point) * gain[:, None], max_speed.clamp(max=MAX_SPEED_MPS), gain=1.0)
+    velocity_cmd = tracking_velocity(point, target, max_speed.clamp(max=MAX_SPEED_MPS), gain)
     yaw_rate = yaw_rate_towards(yaw, yaw_target, law.max_yaw_rate, law.yaw_gain)
     arm_action = None
     if has_arm:

@@ -1,5 +1,5 @@
-"""The pick expert's control step (`expert.pick.pick_step`): compiled as the eager function, on both platforms and
-with the route follower, and with no host synchronization."""
+"""The experts' control steps as pure functions (`expert.pick.pick_step`, `expert.place.place_step`): compiled as the
+eager functions, on both platforms, with the route follower, and with no host synchronization."""
 
 from functools import partial
 
@@ -10,14 +10,15 @@ import torch
 import aerobench.envs  # noqa: F401
 from aerobench.envs.kernels import Kernel
 from aerobench.expert.pick import PickLaw, PickPhase, PickStep, _flat_pick_step
+from aerobench.expert.place import PlaceLaw, PlacePhase, PlaceStep, _flat_place_step
 from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
 
 pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
 
 
-def _expert_in_phase(platform: str, phase: PickPhase, seed: int = 0, steps: int = 300):
-    env = gym.make("AeroPick-v1", num_envs=1, platform=platform)
+def _expert_in_phase(platform: str, phase, seed: int = 0, steps: int = 300, env_id: str = "AeroPick-v1"):
+    env = gym.make(env_id, num_envs=1, platform=platform)
     obs, _ = env.reset(seed=seed)
     policy = make_policy("expert", env.unwrapped)
     policy.reset(torch.arange(1))
@@ -53,4 +54,21 @@ def test_the_pick_step_makes_no_host_sync():
     with NoHostSync():
         action = PickStep(*_flat_pick_step(*tensors, law=law)).action
     assert action.shape == (1, env.unwrapped.platform.action_dim)
+    env.close()
+
+
+@pytest.mark.parametrize("platform, seed, phase", [("gripper", 0, PlacePhase.DESCEND), ("arm", 1, PlacePhase.DESCEND)])
+def test_the_compiled_place_step_is_the_eager_one(platform, seed, phase):
+    env, expert = _expert_in_phase(platform, phase, seed, env_id="AeroPlace-v1")
+    tensors = expert.step_inputs()
+    law = PlaceLaw(expert.has_arm, True, float(expert.max_yaw_rate), float(expert.yaw_gain))  # with the side grasp
+    eager = Kernel(partial(_flat_place_step, law=law), "place_expert", law, [], "cpu", compile=False)
+    compiled = Kernel(partial(_flat_place_step, law=law), "place_expert", law, [], "cpu", compile=True)
+    a, b = PlaceStep(*compiled(*tensors)), PlaceStep(*eager(*tensors))
+    assert compiled.backend == "compiled ahead of time", compiled.backend
+    for name, x, y in zip(PlaceStep._fields, a, b):
+        torch.testing.assert_close(x, y, rtol=1e-5, atol=1e-5, msg=name)
+    assert int(b.phase[0]) in (phase, phase + 1)
+    with NoHostSync():
+        _flat_place_step(*tensors, law=law)
     env.close()
