@@ -44,6 +44,7 @@ from ..scenes.layout import SceneLayout, Support
 from ..scenes.room_routes import RoomRoutes
 from ..signals import ENVELOPE_FLAGS, SharedSignals, SignalConstants, signals_kernel
 from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
+from .evaluator import SkillEvaluator
 from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
 
 RENDER_EYE_CANDIDATES = 12
@@ -300,6 +301,13 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         """Which evaluator scores each env now, `(N,)`; a single-skill env always uses evaluator 0."""
         return torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
 
+    def evaluator_masks(self, active: torch.Tensor) -> list[tuple[SkillEvaluator, torch.Tensor | None]]:
+        """Each evaluator with the mask `(N,)` of the envs it scores now (`active`: `active_evaluator_index()`), or
+        None for a single-skill env's one evaluator, which scores every env (its trackers skip the masking ops)."""
+        if len(self.evaluators) == 1:
+            return [(self.evaluators[0], None)]
+        return [(evaluator, active == k) for k, evaluator in enumerate(self.evaluators)]
+
     # ----------------------------------------------------------------------------------------------------------------
     # Signals
     # ----------------------------------------------------------------------------------------------------------------
@@ -406,9 +414,13 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             )
         success = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         flags: list[tuple[FailureCause, torch.Tensor]] = []
-        for k, evaluator in enumerate(self.evaluators):
-            mine = active == k
+        for evaluator, mine in self.evaluator_masks(active):
             signals, skill_success, skill_flags = evaluator.update(ctx, mine)
+            if mine is None:  # the only evaluator: active in every env
+                info.update(signals)
+                success |= skill_success
+                flags += skill_flags
+                continue
             for key, value in signals.items():
                 # an evaluator's own signals read as False / 0 in envs where another subtask is active
                 info[key] = torch.where(mine, value, info[key] if key in info else torch.zeros_like(value))
@@ -482,8 +494,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         goal, goal_point = torch.zeros(n, 3, device=self.device), torch.zeros(n, 3, device=self.device)
         heading_error, progress = torch.zeros(n, device=self.device), torch.zeros(n, device=self.device)
         skill = torch.zeros(n, dtype=torch.long, device=self.device)
-        for k, evaluator in enumerate(self.evaluators):  # every evaluator's features, kept where it is active
-            mine = active == k
+        for evaluator, mine in self.evaluator_masks(active):  # every evaluator's features, kept where it is active
+            mine = torch.ones_like(active, dtype=torch.bool) if mine is None else mine
             f = evaluator.goal_features(ctx)
             goal = torch.where(mine[:, None], f.goal_pos, goal)
             goal_point = torch.where(mine[:, None], f.goal_point, goal_point)

@@ -50,8 +50,9 @@ class SkillEvaluator:
         """The point `(M, 3)` the drone starts 0.5-1 m from when this skill starts an episode."""
         raise NotImplementedError
 
-    def update(self, ctx, mine: torch.Tensor) -> tuple[dict[str, torch.Tensor], torch.Tensor, Flags]:
-        """(signals, success `(N,)`, failure flags in priority order) for this control step."""
+    def update(self, ctx, mine: torch.Tensor | None) -> tuple[dict[str, torch.Tensor], torch.Tensor, Flags]:
+        """(signals, success `(N,)`, failure flags in priority order) for this control step; `mine` masks the envs
+        where this skill is active, None where it is active in every env (a single-skill env)."""
         raise NotImplementedError
 
     def goal_features(self, ctx) -> GoalFeatures:
@@ -66,7 +67,9 @@ class SkillEvaluator:
         return {}
 
     @staticmethod
-    def keep(mine: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> torch.Tensor:
-        """Advance a tracker only where this skill is active."""
+    def keep(mine: torch.Tensor | None, new: torch.Tensor, old: torch.Tensor) -> torch.Tensor:
+        """Advance a tracker only where this skill is active (`mine` None: in every env)."""
+        if mine is None:
+            return new
         m = mine.view(-1, *([1] * (new.dim() - 1)))
         return torch.where(m, new, old)

@@ -3,19 +3,24 @@
 from __future__ import annotations
 
 import math
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
 
 import torch
 from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs import Pose
 
-from ..checks import FailureCause, consecutive
+from ..checks import FailureCause, SafetyLimits, consecutive
 from ..control.arm import arm_point_positions_body
 from ..geometry import level_airframe_room
+from ..kernels import Kernel, compile_requested
 from ..observations import wrap_angle
 from ..platforms import CONTROL_HZ
 from ..tasks import instruction
 from .base import AeroSkillEnv
 from .evaluator import GoalFeatures, SkillEvaluator
+from .starts import support_contains
 
 PLACE_ALIGN_M = 0.05  # horizontal alignment tolerance: the event t_o
 PLACE_GOAL_RADIUS_M = 0.10  # goal region around the goal point
@@ -67,6 +72,8 @@ class PlaceEvaluator(SkillEvaluator):
         self.collision_impulse = self.zeros()
         self.heading = self.zeros()  # chosen at the skill's start (`place_heading`) and held: the object keeps its
         # place in the jaws
+        self._update: Kernel | None = None  # the compiled `place_update`, made at the first update
+        self._every = torch.ones(self.n, dtype=torch.bool, device=self.device)  # `mine` in a single-skill env
 
     def sample_goal(self, env_idx: torch.Tensor, avoid_support: torch.Tensor | None = None) -> torch.Tensor:
         """A goal point on a destination support (`(M,)` ok: the layout has one)."""
@@ -121,48 +128,41 @@ class PlaceEvaluator(SkillEvaluator):
         return ~inside.reshape(m, k)
 
     def update(self, ctx, mine):
-        env, limits = self.env, self.env.safety
-        all_envs = torch.arange(self.n, device=self.device)
-        obj_xy = ctx.object_pose.p[:, :2]
-        horizontal = torch.linalg.norm(obj_xy - self.goal[:, :2], dim=-1)
-        at_height = (ctx.object_bottom_z - self.goal[:, 2]).abs() < PLACE_REST_TOLERANCE_M
-        on_goal_support = env.inside_support(all_envs, self.goal_support, obj_xy)
-        support_contact = ctx.is_supported & at_height & on_goal_support
-        self.set_down_streak = self.keep(mine, consecutive(self.set_down_streak, support_contact), self.set_down_streak)
-        object_still = torch.linalg.norm(ctx.object_velocity, dim=-1) < OBJECT_STILL_MPS
-        placed = (horizontal < PLACE_GOAL_RADIUS_M) & ctx.is_upright & object_still & support_contact
-        wide_open = env.platform.gripper.max_opening_m - GRIPPER_FULLY_OPEN_SLACK_M
-        gripper_open = ctx.gripper_opening > torch.clamp(env.target_grasp_width + GRIPPER_OPEN_MARGIN_M, max=wide_open)
-        release = support_contact & ~ctx.is_grasp_held & gripper_open
-        self.released = self.keep(mine, self.released | release, self.released)
-        clear = torch.linalg.norm(ctx.tcp - ctx.grasp_point, dim=-1) > PLACE_CLEARANCE_M
-        self.stable_streak = self.keep(mine, consecutive(self.stable_streak, ctx.speed < PLATFORM_STABLE_MPS), self.stable_streak)
-        success = placed & gripper_open & self.released & clear & (self.stable_streak >= PLATFORM_STABLE_STEPS)
-        loose = ~ctx.is_grasped & ~ctx.is_supported & ~self.released
-        self.unsupported_streak = self.keep(mine, consecutive(self.unsupported_streak, loose), self.unsupported_streak)
-        self.collision_impulse = self.keep(
-            mine, self.collision_impulse + ctx.nontarget_force * (ctx.nontarget_force > limits.collision_force_n) / CONTROL_HZ, self.collision_impulse
-        )
+        env = self.env
+        if self._update is None:
+            self._update = place_update_kernel(self._update_law(), self.device)
+        goal_support = env.supports[torch.arange(self.n, device=self.device), self.goal_support]
+        out = PlaceUpdate(*self._update(
+            ctx.object_pose.p, ctx.object_bottom_z, ctx.object_velocity, ctx.is_supported, ctx.is_upright,
+            ctx.is_grasped, ctx.is_grasp_held, ctx.gripper_opening, ctx.tcp, ctx.grasp_point, ctx.speed,
+            ctx.nontarget_force, self.goal, goal_support, env.target_grasp_width, self._every if mine is None else mine,
+            self.set_down_streak, self.released, self.stable_streak, self.unsupported_streak, self.collision_impulse,
+        ))
+        self.set_down_streak, self.released, self.stable_streak = out.set_down_streak, out.released, out.stable_streak
+        self.unsupported_streak, self.collision_impulse = out.unsupported_streak, out.collision_impulse
         flags = [
-            (FailureCause.COLLISION_FORCE, self.collision_impulse > limits.collision_impulse_budget_ns),
-            (FailureCause.OBJECT_DROP, ~ctx.is_grasped & (ctx.object_bottom_z < self.goal[:, 2] - limits.drop_margin_m)),
-            (FailureCause.UNSUPPORTED_RELEASE, self.unsupported_streak >= limits.unsupported_release_steps),
+            (FailureCause.COLLISION_FORCE, out.fail_collision),
+            (FailureCause.OBJECT_DROP, out.fail_drop),
+            (FailureCause.UNSUPPORTED_RELEASE, out.fail_unsupported),
         ]
         signals = {
-            "goal_distance": horizontal,
-            "is_aligned": horizontal < PLACE_ALIGN_M,
-            "is_support_contact": support_contact,
-            "is_set_down": support_contact,
+            "goal_distance": out.goal_distance,
+            "is_aligned": out.is_aligned,
+            "is_support_contact": out.support_contact,
+            "is_set_down": out.support_contact,
             "set_down_steps": self.set_down_streak.clone(),
-            "is_placed": placed,
-            "is_gripper_open": gripper_open,
-            "is_released": release,
+            "is_placed": out.placed,
+            "is_gripper_open": out.gripper_open,
+            "is_released": out.release,
             "release_registered": self.released.clone(),
-            "is_gripper_clear": clear,
+            "is_gripper_clear": out.clear,
             "platform_stable_steps": self.stable_streak.clone(),
             "collision_impulse": self.collision_impulse.clone(),
         }
-        return signals, success, flags
+        return signals, out.success, flags
+
+    def _update_law(self) -> PlaceUpdateLaw:
+        return PlaceUpdateLaw(self.env.safety, self.env.platform.gripper.max_opening_m - GRIPPER_FULLY_OPEN_SLACK_M)
 
     def goal_features(self, ctx) -> GoalFeatures:
         return GoalFeatures(
@@ -183,6 +183,98 @@ class PlaceEvaluator(SkillEvaluator):
 
     def privileged_obs(self):
         return {"place_goal": self.goal.clone()}
+
+
+class PlaceUpdateLaw(NamedTuple):
+    """What fixes `place_update` besides its tensors (hashable: a compiled kernel's key)."""
+
+    limits: SafetyLimits
+    wide_open_m: float  # the pads' opening that counts as fully open
+
+
+class PlaceUpdate(NamedTuple):
+    """The place evaluator's trackers after one control step, its signals, success and failure flags `(N,)`."""
+
+    set_down_streak: torch.Tensor
+    released: torch.Tensor
+    stable_streak: torch.Tensor
+    unsupported_streak: torch.Tensor
+    collision_impulse: torch.Tensor
+    goal_distance: torch.Tensor
+    is_aligned: torch.Tensor
+    support_contact: torch.Tensor
+    placed: torch.Tensor
+    gripper_open: torch.Tensor
+    release: torch.Tensor
+    clear: torch.Tensor
+    success: torch.Tensor
+    fail_collision: torch.Tensor
+    fail_drop: torch.Tensor
+    fail_unsupported: torch.Tensor
+
+
+def place_update(
+    obj, object_bottom_z, object_velocity, is_supported, is_upright, is_grasped, is_grasp_held, gripper_opening,
+    tcp, grasp_point, speed, nontarget_force, goal, goal_support, grasp_width, mine,
+    set_down_streak, released, stable_streak, unsupported_streak, collision_impulse, *, law: PlaceUpdateLaw,
+) -> PlaceUpdate:
+    """One control step of the place evaluator as a pure function of tensors (`(N, ...)`, no branch on a tensor
+    value): the step context's object, grasp and airframe signals, the goal and its support's row, the object's
+    grasp width, the envs where the place is active (`mine`) and the trackers; the trackers advance only there."""
+    limits = law.limits
+
+    def keep(new, old):
+        return torch.where(mine, new, old)
+
+    horizontal = torch.linalg.norm(obj[:, :2] - goal[:, :2], dim=-1)
+    at_height = (object_bottom_z - goal[:, 2]).abs() < PLACE_REST_TOLERANCE_M
+    support_contact = is_supported & at_height & support_contains(goal_support, obj[:, :2])
+    set_down_streak = keep(consecutive(set_down_streak, support_contact), set_down_streak)
+    object_still = torch.linalg.norm(object_velocity, dim=-1) < OBJECT_STILL_MPS
+    placed = (horizontal < PLACE_GOAL_RADIUS_M) & is_upright & object_still & support_contact
+    gripper_open = gripper_opening > torch.clamp(grasp_width + GRIPPER_OPEN_MARGIN_M, max=law.wide_open_m)
+    release = support_contact & ~is_grasp_held & gripper_open
+    released = keep(released | release, released)
+    clear = torch.linalg.norm(tcp - grasp_point, dim=-1) > PLACE_CLEARANCE_M
+    stable_streak = keep(consecutive(stable_streak, speed < PLATFORM_STABLE_MPS), stable_streak)
+    success = placed & gripper_open & released & clear & (stable_streak >= PLATFORM_STABLE_STEPS)
+    loose = ~is_grasped & ~is_supported & ~released
+    unsupported_streak = keep(consecutive(unsupported_streak, loose), unsupported_streak)
+    hard = nontarget_force * (nontarget_force > limits.collision_force_n)
+    collision_impulse = keep(collision_impulse + hard / CONTROL_HZ, collision_impulse)
+    return PlaceUpdate(
+        set_down_streak, released, stable_streak, unsupported_streak, collision_impulse,
+        goal_distance=horizontal,
+        is_aligned=horizontal < PLACE_ALIGN_M,
+        support_contact=support_contact,
+        placed=placed,
+        gripper_open=gripper_open,
+        release=release,
+        clear=clear,
+        success=success,
+        fail_collision=collision_impulse > limits.collision_impulse_budget_ns,
+        fail_drop=~is_grasped & (object_bottom_z < goal[:, 2] - limits.drop_margin_m),
+        fail_unsupported=unsupported_streak >= limits.unsupported_release_steps,
+    )
+
+
+def _flat_place_update(*tensors: torch.Tensor, law: PlaceUpdateLaw) -> tuple[torch.Tensor, ...]:
+    return tuple(place_update(*tensors, law=law))
+
+
+_KERNELS: dict[tuple, Kernel] = {}
+
+
+def place_update_kernel(law: PlaceUpdateLaw, device: torch.device | str, compile: bool | None = None) -> Kernel:
+    """The process's one `place_update` kernel for `law` on `device` (compiled once per process; on a CPU ahead of
+    time, cached on disk)."""
+    compile = compile_requested() if compile is None else compile
+    key = (law, str(device), compile)
+    if key not in _KERNELS:
+        here = Path(__file__).resolve().parent
+        sources = [here / "place.py", here / "starts.py", here.parent / "checks.py", here.parent / "platforms.py"]
+        _KERNELS[key] = Kernel(partial(_flat_place_update, law=law), "place_evaluator", law, sources, device, compile)
+    return _KERNELS[key]
 
 
 def put_object_in_gripper(env, env_idx: torch.Tensor, drone_yaw: torch.Tensor) -> None:

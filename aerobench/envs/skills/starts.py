@@ -25,6 +25,15 @@ SIGHT_SKIP_M = 0.10  # a handle stands a few cm off its door: the line of sight 
 PARKING_DEPTH_M = -2.0  # distractors that find no room wait under the floor
 
 
+def support_contains(row: torch.Tensor, xy: torch.Tensor, margin: float = 0.0) -> torch.Tensor:
+    """`(M,)` whether each point `xy` `(M, 2)` lies over its support `row` `(M, 9)` (a row of the env's packed
+    `supports`: centre x, y, half extents, surface height, yaw, ...), at least `margin` inside its edges."""
+    d = xy - row[:, 0:2]
+    c, s = torch.cos(-row[:, 5]), torch.sin(-row[:, 5])
+    local = torch.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], -1)
+    return (local.abs() <= row[:, 2:4] - margin).all(-1)
+
+
 class EpisodeStarts:
     """Batched episode-start sampling for `AeroSkillEnv` (see the module docstring)."""
 
@@ -47,11 +56,7 @@ class EpisodeStarts:
         return torch.cat([xy, row[:, 4:5]], dim=-1)
 
     def inside_support(self, env_idx: torch.Tensor, index: torch.Tensor, xy: torch.Tensor, margin: float = 0.0) -> torch.Tensor:
-        row = self.supports[env_idx, index]
-        d = xy - row[:, 0:2]
-        c, s = torch.cos(-row[:, 5]), torch.sin(-row[:, 5])
-        local = torch.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], -1)
-        return (local.abs() <= row[:, 2:4] - margin).all(-1)
+        return support_contains(self.supports[env_idx, index], xy, margin)
 
     def obstacle_boxes(self, env_idx: torch.Tensor | None = None) -> torch.Tensor:
         """Packed static boxes plus the fixtures (fridge, drawer) in their current state, for the given envs (all
