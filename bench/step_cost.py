@@ -1,10 +1,12 @@
 """Milliseconds per control step of each aerobench env against the bare PhysX step of the same scene.
 
-Rows (one env, physx_cpu unless a GPU is named): (a) the bare scene, 12 PhysX steps with the hover joint efforts
-held constant (no controller, no aerobench code); (b) ManiSkill's PickCube-v1, state, as a reference; (c)
+Rows (one env, physx_cpu unless a GPU is named): (a) the bare scene, 12 PhysX steps per control step with no
+controller and no aerobench code, two ways: at rest (the scene after the row, the joint efforts frozen) and the row's
+own episode replayed (the efforts and gripper targets it recorded, so the same states, contacts and sleeping bodies);
+(b) ManiSkill's PickCube-v1, state, as a reference; (c)
 AeroFly-v1; (d) AeroPick-v1 and AeroPlace-v1, state, hovering and with the privileged expert acting; (e) the same
 Pick env with the three 128x128 RGB-D cameras (lavapipe's cost: reported, kept out of the ratios). Each aerobench
-row's ratio is to the bare step of its own scene. Then expert Pick episodes per minute on one core, and `aerobench
+row's ratios are to the bare steps of its own scene. Then expert Pick episodes per minute on one core, and `aerobench
 train ppo` env steps per second (Pick, from scratch, the spec's 64-step windows) with K = 1 env and with K = 2
 worker processes (physx_cpu runs one env per process).
 
@@ -60,36 +62,87 @@ def bare_physics_ms(base, steps: int) -> float:
     return per_step_ms(bare, steps)
 
 
-def aero_rows(env_id: str, steps: int, expert: bool, **kwargs) -> tuple[float, float]:
-    """(ms per env.step, ms per bare step of the same scene); with `expert`, the expert's act() is in the step."""
+def replayed_physics_ms(env, expert: bool, hover: torch.Tensor, steps: int) -> tuple[float, float]:
+    """(ms per control step, max joint deviation): the row's episode (`episode_ms`), its 12 PhysX steps per control
+    step replayed alone. A first run records the efforts the controller applied at every physics step and the
+    gripper's drive targets; the replay resets to the same start and steps PhysX with them, timing only the physics
+    steps (and their `set_qf`). It follows the recorded episode (the deviation of its final joints says how closely):
+    the bare step of the same scene in the same states, awake or asleep as they were."""
+    base = env.unwrapped
+    obs, _ = env.reset(seed=SEED)
+    policy = make_policy("expert", base) if expert else None
+    if policy is not None:
+        policy.reset(torch.arange(1))
+    controller = base.agent.body_controller
+    articulation = controller._cpu_articulation
+    efforts, targets = [], []
+    record = controller.before_simulation_step
+
+    def recording():
+        record()
+        efforts.append(articulation.get_qf().copy())
+
+    controller.before_simulation_step = recording
+    try:
+        for _ in range(steps):
+            obs, _, terminated, truncated, _ = env.step(policy.act(obs) if policy is not None else hover)
+            targets.append([joint.get_drive_target().copy() for joint in articulation.active_joints])
+            if bool(terminated.any() | truncated.any()):
+                break
+    finally:
+        del controller.before_simulation_step
+    final = articulation.get_qpos().copy()
+    env.reset(seed=SEED)
+    articulation, px = base.agent.body_controller._cpu_articulation, base.scene.px  # the reset rebuilt the scene
+    spent = 0.0
+    for k, step_targets in enumerate(targets):
+        for joint, target in zip(articulation.active_joints, step_targets):
+            joint.set_drive_target(target)
+        t0 = time.perf_counter()
+        for qf in efforts[k * SUBSTEPS:(k + 1) * SUBSTEPS]:
+            articulation.set_qf(qf)
+            px.step()
+        spent += time.perf_counter() - t0
+    deviation = float(abs(articulation.get_qpos() - final).max())
+    return spent / len(targets) * 1e3, deviation
+
+
+def episode_ms(env, expert: bool, hover: torch.Tensor, max_steps: int) -> float:
+    """ms per control step (action and env.step) over the episode from the row's start: with the expert, to the
+    episode's end (success, failure or its step limit); hovering, `max_steps` control steps."""
+    obs, _ = env.reset(seed=SEED)
+    policy = make_policy("expert", env.unwrapped) if expert else None  # as the rollout runner: after the reset
+    if policy is not None:
+        policy.reset(torch.arange(1))
+    spent, steps = 0.0, 0
+    for _ in range(max_steps):
+        t0 = time.perf_counter()
+        obs, _, terminated, truncated, _ = env.step(policy.act(obs) if policy is not None else hover)
+        spent += time.perf_counter() - t0
+        steps += 1
+        if bool(terminated.any() | truncated.any()):
+            break
+    return spent / steps * 1e3
+
+
+def aero_rows(env_id: str, steps: int, expert: bool, **kwargs) -> tuple[float, float, float, float]:
+    """(ms per control step, ms per bare step of the same scene at rest, ms per replayed bare step of the same
+    episode, the replay's deviation). With the expert, one whole episode (timed `REPEATS` times after one untimed run,
+    the minimum kept); hovering, `steps` control steps."""
     env = gym.make(env_id, num_envs=1, **kwargs)
-    obs, _ = env.reset(seed=SEED, options={"reconfigure": True})
+    env.reset(seed=SEED, options={"reconfigure": True})
     base = env.unwrapped
     hover = torch.zeros(1, base.platform.action_dim)
     hover[:, -1] = -1.0 if env_id == "AeroPlace-v1" else 1.0  # Place starts holding the object: keep it
-    state = {"obs": obs, "policy": make_policy("expert", base) if expert else None}
-    if expert:
-        state["policy"].reset(torch.arange(1))
-
-    def ours(n) -> float:
-        spent = 0.0
-        for _ in range(n):
-            t0 = time.perf_counter()
-            policy = state["policy"]
-            action = policy.act(state["obs"]) if policy is not None else hover
-            state["obs"], _, terminated, truncated, _ = env.step(action)
-            spent += time.perf_counter() - t0
-            if bool(terminated.any() | truncated.any()):  # a reset is not a control step: not timed
-                state["obs"], _ = env.reset(seed=SEED)
-                if expert:  # as the rollout runner: a policy per episode (the reset rebuilt the scene's evaluators)
-                    state["policy"] = make_policy("expert", base)
-                    state["policy"].reset(torch.arange(1))
-        return spent
-
-    t_ours = per_step_ms(ours, steps)
+    max_steps = gym.spec(env_id).max_episode_steps if expert else steps
+    episode_ms(env, expert, hover, max_steps if expert else 5)  # compiles, warms the caches
+    t_ours = min(episode_ms(env, expert, hover, max_steps) for _ in range(REPEATS))
     t_bare = bare_physics_ms(base, steps)
+    t_replay, deviation = (float("nan"),) * 2
+    if not base.scene.gpu_sim_enabled:  # the replay reads and writes the one PhysX articulation of physx_cpu
+        t_replay, deviation = replayed_physics_ms(env, expert, hover, max_steps)
     env.close()
-    return t_ours, t_bare
+    return t_ours, t_bare, t_replay, deviation
 
 
 def maniskill_reference_ms(steps: int) -> float:
@@ -171,7 +224,7 @@ def main() -> None:
     torch.set_num_threads(1)
     print(f"physx_cpu, one env, one torch thread, {SUBSTEPS} physics steps per control step, {args.steps} control "
           f"steps per row")
-    print(f"{'row':<44} {'ms/step':>9} {'bare ms':>9} {'ratio':>7}")
+    print(f"{'row':<44} {'ms/step':>9} {'rest ms':>9} {'ratio':>7} {'replay ms':>10} {'ratio':>7} {'replay dev':>11}")
     reference = maniskill_reference_ms(args.steps)
     print(f"{'(b) ManiSkill PickCube-v1, state':<44} {reference:9.2f} {'':>9} {'':>7}")
     rows = [
@@ -185,10 +238,13 @@ def main() -> None:
         rows.append(("(e) AeroPick-v1, 3 RGB-D cameras, expert", "AeroPick-v1", True, {"obs_mode": "rgbd"}))
     for label, env_id, expert, kwargs in rows:
         steps = args.steps if kwargs["obs_mode"] != "rgbd" else max(args.steps // 5, 5)
-        ours, bare = aero_rows(env_id, steps, expert, **kwargs)
-        print(f"{label:<44} {ours:9.2f} {bare:9.2f} {ours / bare:6.1f}x", flush=True)
-    print("(a) is each row's 'bare ms': the same scene's 12 PhysX steps alone. Goals: Pick with the expert <= 3x, "
-          "Fly <= 1.5x")
+        ours, bare, replay, deviation = aero_rows(env_id, steps, expert, **kwargs)
+        print(f"{label:<44} {ours:9.2f} {bare:9.2f} {ours / bare:6.1f}x {replay:10.2f} {ours / replay:6.1f}x "
+              f"{deviation:11.1e}", flush=True)
+    print("(a) the bare PhysX step of each row's scene: 'rest ms', the scene after the row, its 12 PhysX steps with "
+          "the efforts frozen; 'replay ms', the row's own episode replayed in PhysX alone (its recorded efforts and "
+          "gripper targets; 'replay dev': its final joints' largest deviation from the episode, m or rad). Goals: "
+          "Pick with the expert <= 3x, Fly <= 1.5x")
     print(f"AeroPick-v1 reset with a new layout: {reset_ms():.0f} ms (median of 15)")
     rate, successes, steps = expert_episodes_per_min(args.episodes)
     print(f"expert Pick episodes per minute on one core: {rate:.1f} ({successes}/{args.episodes} successful, "

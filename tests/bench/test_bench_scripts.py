@@ -173,9 +173,11 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.startswith("(")]
     assert [r.split()[0] for r in rows] == ["(b)", "(c)", "(d)", "(d)", "(d)", "(d)", "(a)"]
-    for row in rows[1:-1]:  # ms/step, bare ms, ratio: measured, positive, and consistent with each other
-        ours, bare, ratio = float(row.split()[-3]), float(row.split()[-2]), float(row.split()[-1].rstrip("x"))
-        assert ours > 0 and bare > 0 and ratio == pytest.approx(ours / bare, rel=0.05)
+    for row in rows[1:-1]:  # ms/step, the bare steps and their ratios: measured, positive, consistent
+        ours, rest, rest_ratio, replay, replay_ratio, deviation = (float(v.rstrip("x")) for v in row.split()[-6:])
+        assert ours > 0 and rest > 0 and rest_ratio == pytest.approx(ours / rest, rel=0.05)
+        assert replay > 0 and replay_ratio == pytest.approx(ours / replay, rel=0.05)
+        assert deviation <= 1e-5  # the replay followed the row's episode: the same states stepped bare
     assert "expert Pick episodes per minute on one core" in out and "(1/1 successful" in out
     assert float(out.split("AeroPick-v1 reset with a new layout: ")[1].split(" ms")[0]) > 0
 
