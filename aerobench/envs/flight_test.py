@@ -39,6 +39,7 @@ REFERENCE_OFFSET_M = (0.0, 4.0, 0.0)  # the reference body flies this far to the
 class AeroFlyEnv(AerialEnv):
     SUPPORTED_OBS_MODES = ("state", "state_dict", "none", "sensor_data", "rgb", "depth", "rgbd")
     SUPPORTED_REWARD_MODES = ("none",)
+    _obs_state: AirframeState | None = None  # the airframe state while an observation is assembled
 
     def __init__(
         self,
@@ -180,8 +181,19 @@ class AeroFlyEnv(AerialEnv):
             info["payload_height"] = self.payload.pose.p[:, 2]
         return info
 
+    def get_obs(self, info: dict | None = None, unflattened: bool = False):
+        # the agent's and the extra observation read the same airframe state: read it once per observation
+        self._obs_state = self.agent.airframe_state()
+        try:
+            return super().get_obs(info, unflattened)
+        finally:
+            self._obs_state = None
+
+    def _get_obs_agent(self):
+        return self.agent.get_proprioception(self._obs_state)
+
     def _get_obs_extra(self, info: dict):
-        state = self.agent.airframe_state()
+        state = self._obs_state if self._obs_state is not None else self.agent.airframe_state()
         return dict(tcp_pose=self.agent.tcp_pose.raw_pose, airframe_velocity=state.velocity)
 
 

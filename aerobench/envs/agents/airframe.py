@@ -324,7 +324,11 @@ class AerialAgent(BaseAgent):
     @property
     def tcp_pose(self) -> Pose:
         """Tool centre point (grasp point): the link the fingers ride on, offset to the point between the pads."""
-        link = pose_of(self.grasp_link)  # the offset is a pure translation: rotate it, keep the link's orientation
+        link = self.grasp_link
+        if not self.scene.gpu_sim_enabled and len(link._objs) == 1:  # physx_cpu: one SAPIEN pose product
+            pose = link._objs[0].entity_pose * sapien.Pose(p=self._tcp_offset_in_grasp_link)
+            return Pose(raw_pose=torch.from_numpy(np.concatenate([pose.p, pose.q]))[None])
+        link = pose_of(link)  # the offset is a pure translation: rotate it, keep the link's orientation
         offset = torch.as_tensor(self._tcp_offset_in_grasp_link, dtype=link.p.dtype, device=link.p.device)
         return Pose.create_from_pq(p=link.p + quat_rotate(link.q, offset), q=link.q)
 
