@@ -3,7 +3,7 @@
 Rows (one env, physx_cpu unless a GPU is named): (a) the bare scene, 12 PhysX steps per control step with no
 controller and no aerobench code, two ways: at rest (the scene after the row, the joint efforts frozen) and the row's
 own episode replayed (the efforts and gripper targets it recorded, so the same states, contacts and sleeping bodies);
-(b) ManiSkill's PickCube-v1, state, as a reference; (c)
+(b) ManiSkill's PickCube-v1, state, as a reference (against its own bare physics steps); (c)
 AeroFly-v1; (d) AeroPick-v1 and AeroPlace-v1, state, hovering and with the privileged expert acting; (e) the same
 Pick env with the three 128x128 RGB-D cameras (lavapipe's cost: reported, kept out of the ratios). Each aerobench
 row's ratios are to the bare steps of its own scene. Then expert Pick episodes per minute on one core, and `aerobench
@@ -145,7 +145,10 @@ def aero_rows(env_id: str, steps: int, expert: bool, **kwargs) -> tuple[float, f
     return t_ours, t_bare, t_replay, deviation
 
 
-def maniskill_reference_ms(steps: int) -> float:
+def maniskill_reference_ms(steps: int) -> tuple[float, float]:
+    """(ms per control step, ms per bare step of its scene) of ManiSkill's PickCube-v1, state, a zero action: what
+    ManiSkill's own step machinery costs over its physics (its bare step: its physics steps per control step, the
+    arm's PD drives holding their targets)."""
     env = gym.make("PickCube-v1", obs_mode="state", num_envs=1)
     env.reset(seed=SEED)
     action = torch.zeros(env.action_space.shape)
@@ -155,8 +158,16 @@ def maniskill_reference_ms(steps: int) -> float:
             env.step(action)
 
     t = per_step_ms(ours, steps)
+    base = env.unwrapped
+    px, substeps = base.scene.px, base._sim_steps_per_control
+
+    def bare(n):
+        for _ in range(n * substeps):
+            px.step()
+
+    t_bare = per_step_ms(bare, steps)
     env.close()
-    return t
+    return t, t_bare
 
 
 def reset_ms(resets: int = 15) -> float:
@@ -225,8 +236,9 @@ def main() -> None:
     print(f"physx_cpu, one env, one torch thread, {SUBSTEPS} physics steps per control step, {args.steps} control "
           f"steps per row")
     print(f"{'row':<44} {'ms/step':>9} {'rest ms':>9} {'ratio':>7} {'replay ms':>10} {'ratio':>7} {'replay dev':>11}")
-    reference = maniskill_reference_ms(args.steps)
-    print(f"{'(b) ManiSkill PickCube-v1, state':<44} {reference:9.2f} {'':>9} {'':>7}")
+    reference, reference_bare = maniskill_reference_ms(args.steps)
+    print(f"{'(b) ManiSkill PickCube-v1, state':<44} {reference:9.2f} {reference_bare:9.3f} "
+          f"{reference / reference_bare:6.1f}x", flush=True)
     rows = [
         ("(c) AeroFly-v1, state, hovering", "AeroFly-v1", False, {"obs_mode": "state_dict"}),
         ("(d) AeroPick-v1, state, hovering", "AeroPick-v1", False, {"obs_mode": "state_dict"}),

@@ -13,10 +13,10 @@ atexit.register(shutil.rmtree, _cache, ignore_errors=True)
 os.environ.setdefault("XDG_CACHE_HOME", _cache)
 os.environ.setdefault("MPLCONFIGDIR", os.path.join(_cache, "matplotlib"))
 os.environ.setdefault("HF_HOME", os.path.join(_cache, "huggingface"))
-# The eager kernels (physics step, shared signals, the pick and place experts' steps: the same numbers) in every test
-# process and the subprocesses it starts: loading a compiled one costs each new process seconds. The compiled ones
-# are checked against them by tests/envs/control/test_fused.py, tests/envs/test_signals.py and
-# tests/expert/test_expert_steps.py.
+# The eager kernels (physics step, shared signals, the place evaluator's and the pick and place experts' steps: the
+# same numbers) in every test process and the subprocesses it starts: loading a compiled one costs each new process
+# seconds. The compiled ones are checked against them by tests/envs/control/test_fused.py, tests/envs/test_signals.py,
+# tests/envs/test_place_update.py and tests/expert/test_expert_steps.py.
 os.environ.setdefault("AEROBENCH_COMPILE", "0")
 logging.getLogger("mani_skill").setLevel(logging.ERROR)
 

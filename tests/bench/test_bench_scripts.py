@@ -173,6 +173,8 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.startswith("(")]
     assert [r.split()[0] for r in rows] == ["(b)", "(c)", "(d)", "(d)", "(d)", "(d)", "(a)"]
+    ours, bare, ratio = (float(v.rstrip("x")) for v in rows[0].split()[-3:])  # ManiSkill's own step and physics
+    assert ours > bare > 0 and ratio == pytest.approx(ours / bare, rel=0.05)
     for row in rows[1:-1]:  # ms/step, the bare steps and their ratios: measured, positive, consistent
         ours, rest, rest_ratio, replay, replay_ratio, deviation = (float(v.rstrip("x")) for v in row.split()[-6:])
         assert ours > 0 and rest > 0 and rest_ratio == pytest.approx(ours / rest, rel=0.05)
