@@ -203,3 +203,18 @@ class Kernel:
             log.warning("aerobench: %s of the %s failed (%s); %s. AEROBENCH_COMPILE=0 skips the attempt.",
                         what, self.name.replace("_", " "), reason, instead)
         return reason
+
+
+_SHARED: dict[tuple, Kernel] = {}
+
+
+def shared_kernel(fn: Callable, name: str, key: object, sources: Sequence[Path], device: torch.device | str,
+                  compile: bool | None = None, **options) -> Kernel:
+    """The process's one `Kernel` of `name` for `key` on `device` (`compile`: `AEROBENCH_COMPILE` unless given),
+    made on the first request and shared by every env, evaluator or expert that asks again, so it compiles once per
+    process. `key` must fix `fn` (the bound law or constants); `options` go to `Kernel`."""
+    compile = compile_requested() if compile is None else compile
+    index = (name, key, str(device), compile)
+    if index not in _SHARED:
+        _SHARED[index] = Kernel(fn, name, key, sources, device, compile, **options)
+    return _SHARED[index]

@@ -22,7 +22,7 @@ from .checks import SafetyLimits, flight_envelope_flags, is_pinched, nontarget_c
 from .control.so3 import quat_rotate, quat_wxyz_to_matrix
 from .control.virtual_joints import airframe_state_from_joints
 from .geometry import body_points_to_world, min_distance_to_boxes
-from .kernels import Kernel, compile_requested
+from .kernels import Kernel, shared_kernel
 
 GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force
 HELD_FORCE_N = 0.1  # spec (chained evaluation, Open/Close release): "both fingers exceed 0.1 N"
@@ -175,18 +175,13 @@ def _flat_signals(*tensors: torch.Tensor, const: SignalConstants) -> tuple[torch
 
 
 BOXES_INPUT = 11  # `shared_signals`' input position of the scene's boxes, whose count varies with the layout
-_KERNELS: dict[tuple, Kernel] = {}
+_HERE = Path(__file__).resolve().parent
+_SOURCES = [_HERE / "signals.py", _HERE / "checks.py", _HERE / "geometry.py", _HERE / "control" / "so3.py",
+            _HERE / "control" / "virtual_joints.py"]
 
 
 def signals_kernel(const: SignalConstants, device: torch.device | str, compile: bool | None = None) -> Kernel:
     """The process's one `shared_signals` kernel for `const` on `device` (shared, so it compiles once per process and
     kind of env): call it with the tensors of `shared_signals`; `SharedSignals.from_flat` reads what it returns."""
-    compile = compile_requested() if compile is None else compile
-    key = (const, str(device), compile)
-    if key not in _KERNELS:
-        here = Path(__file__).resolve().parent
-        sources = [here / "signals.py", here / "checks.py", here / "geometry.py", here / "control" / "so3.py",
-                   here / "control" / "virtual_joints.py"]
-        _KERNELS[key] = Kernel(partial(_flat_signals, const=const), "shared_signals", const, sources, device, compile,
-                               dynamic={BOXES_INPUT: 1})
-    return _KERNELS[key]
+    return shared_kernel(partial(_flat_signals, const=const), "shared_signals", const, _SOURCES, device, compile,
+                         dynamic={BOXES_INPUT: 1})

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from ..envs.control.arm import arm_point_positions_body, normalized_arm_action
-from ..envs.kernels import Kernel, compile_requested
+from ..envs.kernels import Kernel, shared_kernel
 from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from ..envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M
@@ -210,15 +210,7 @@ class PickExpert(SkillExpert):
     def _kernel(self) -> Kernel:
         """The compiled `pick_step` of this expert's law (whether it follows routes is part of it)."""
         law = PickLaw(self.has_arm, self.routed, self.platform.arm, float(self.max_yaw_rate), float(self.yaw_gain))
-        compile = compile_requested()
-        key = (law, str(self.device), compile)
-        if key not in _KERNELS:
-            here = Path(__file__).resolve().parent
-            envs = here.parent / "envs"
-            sources = [here / "pick.py", here / "motion.py", here / "route.py", envs / "skills" / "pick.py",
-                       envs / "observations.py", envs / "platforms.py"]
-            _KERNELS[key] = Kernel(partial(_flat_pick_step, law=law), "pick_expert", law, sources, self.device, compile)
-        return _KERNELS[key]
+        return shared_kernel(partial(_flat_pick_step, law=law), "pick_expert", law, _SOURCES, self.device)
 
     def step_inputs(self) -> list[torch.Tensor]:
         """This control step's tensors of `pick_step` (the env's step context and signals, the expert's memory, the
@@ -426,4 +418,9 @@ def _flat_pick_step(*tensors: torch.Tensor, law: PickLaw) -> tuple[torch.Tensor,
     return tuple(pick_step(*tensors, law=law))
 
 
-_KERNELS: dict[tuple, Kernel] = {}  # per law, device and whether compiled: one per process
+_HERE = Path(__file__).resolve().parent
+_ENVS = _HERE.parent / "envs"
+# every module `pick_step` reads code or constants from: a change to any of them is a new compiled package
+_SOURCES = [_HERE / "pick.py", _HERE / "base.py", _HERE / "motion.py", _HERE / "route.py", _ENVS / "skills" / "pick.py",
+            _ENVS / "observations.py", _ENVS / "platforms.py", _ENVS / "control" / "arm.py", _ENVS / "control" / "so3.py",
+            _ENVS / "scenes" / "articulated.py"]

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import torch
 
 from ..envs.control.arm import normalized_arm_action
-from ..envs.kernels import Kernel, compile_requested
+from ..envs.kernels import Kernel, shared_kernel
 from .base import SkillExpert, expert_action, goto_phase, tracking_velocity
 from .motion import POSITION_GAIN, TURN_TOLERANCE_RAD, wrap_angle, yaw_rate_towards
 from .planner import planner_for
@@ -113,14 +113,7 @@ class PlaceExpert(SkillExpert):
     def _kernel(self) -> Kernel:
         """The compiled `place_step` of this expert's law."""
         law = PlaceLaw(self.has_arm, self.pick is not None, float(self.max_yaw_rate), float(self.yaw_gain))
-        compile = compile_requested()
-        key = (law, str(self.device), compile)
-        if key not in _KERNELS:
-            here = Path(__file__).resolve().parent
-            sources = [here / "place.py", here / "base.py", here / "motion.py", here / "route.py",
-                       here.parent / "envs" / "observations.py", here.parent / "envs" / "platforms.py"]
-            _KERNELS[key] = Kernel(partial(_flat_place_step, law=law), "place_expert", law, sources, self.device, compile)
-        return _KERNELS[key]
+        return shared_kernel(partial(_flat_place_step, law=law), "place_expert", law, _SOURCES, self.device)
 
     def step_inputs(self) -> list[torch.Tensor]:
         """This control step's tensors of `place_step` (the env's step context and signals, the expert's memory, the
@@ -281,7 +274,11 @@ def _flat_place_step(*tensors: torch.Tensor, law: PlaceLaw) -> tuple[torch.Tenso
     return tuple(place_step(*tensors, law=law))
 
 
-_KERNELS: dict[tuple, Kernel] = {}  # per law, device and whether compiled: one per process
+_HERE = Path(__file__).resolve().parent
+_ENVS = _HERE.parent / "envs"
+# every module `place_step` reads code or constants from: a change to any of them is a new compiled package
+_SOURCES = [_HERE / "place.py", _HERE / "base.py", _HERE / "motion.py", _HERE / "route.py", _ENVS / "observations.py",
+            _ENVS / "platforms.py", _ENVS / "control" / "arm.py"]
 
 
 __all__ = ["PlaceExpert", "PlacePhase", "wrap_angle"]

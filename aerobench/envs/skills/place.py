@@ -14,7 +14,7 @@ from mani_skill.utils.structs import Pose
 from ..checks import FailureCause, SafetyLimits, consecutive
 from ..control.arm import arm_point_positions_body
 from ..geometry import level_airframe_room
-from ..kernels import Kernel, compile_requested
+from ..kernels import Kernel, shared_kernel
 from ..observations import wrap_angle
 from ..platforms import CONTROL_HZ
 from ..tasks import instruction
@@ -262,19 +262,14 @@ def _flat_place_update(*tensors: torch.Tensor, law: PlaceUpdateLaw) -> tuple[tor
     return tuple(place_update(*tensors, law=law))
 
 
-_KERNELS: dict[tuple, Kernel] = {}
+_HERE = Path(__file__).resolve().parent
+_SOURCES = [_HERE / "place.py", _HERE / "starts.py", _HERE.parent / "checks.py", _HERE.parent / "platforms.py"]
 
 
 def place_update_kernel(law: PlaceUpdateLaw, device: torch.device | str, compile: bool | None = None) -> Kernel:
     """The process's one `place_update` kernel for `law` on `device` (compiled once per process; on a CPU ahead of
     time, cached on disk)."""
-    compile = compile_requested() if compile is None else compile
-    key = (law, str(device), compile)
-    if key not in _KERNELS:
-        here = Path(__file__).resolve().parent
-        sources = [here / "place.py", here / "starts.py", here.parent / "checks.py", here.parent / "platforms.py"]
-        _KERNELS[key] = Kernel(partial(_flat_place_update, law=law), "place_evaluator", law, sources, device, compile)
-    return _KERNELS[key]
+    return shared_kernel(partial(_flat_place_update, law=law), "place_evaluator", law, _SOURCES, device, compile)
 
 
 def put_object_in_gripper(env, env_idx: torch.Tensor, drone_yaw: torch.Tensor) -> None:
