@@ -18,10 +18,17 @@ os.environ.setdefault("HF_HOME", os.path.join(_cache, "huggingface"))
 # seconds. The compiled ones are checked against them by tests/envs/control/test_fused.py, tests/envs/test_signals.py,
 # tests/envs/test_place_update.py and tests/expert/test_expert_steps.py.
 os.environ.setdefault("AEROBENCH_COMPILE", "0")
+# The two xdist workers share the 2 cores: one intra-op thread per test process and per subprocess it starts, so
+# the workers never run more compute threads than there are cores. In one fresh-clone run on a contended machine,
+# ACT's and pi0.5's lerobot-train side by side, two OpenMP threads each, took 721 s and 705 s; on a quiet machine the
+# pair takes 26-37 s either way.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 logging.getLogger("mani_skill").setLevel(logging.ERROR)
 
 import pytest  # noqa: E402
 import torch  # noqa: E402
+
+torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))  # in case a plugin imported torch before this file
 
 
 def pytest_collection_modifyitems(config, items):
