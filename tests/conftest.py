@@ -21,7 +21,7 @@ os.environ.setdefault("AEROBENCH_COMPILE", "0")
 # The two xdist workers share the 2 cores: one intra-op thread per test process and per subprocess it starts, so
 # the workers never run more compute threads than there are cores. With torch's default of two OpenMP threads each,
 # a fresh-clone `make test` spent 43 min of CPU in 23.7 min of pytest (ACT's and pi0.5's lerobot-train side by side:
-# 721 s and 705 s); with one, 18 min of CPU in 10.7 min (the same pair: 34 s and 26 s).
+# 721 s and 705 s); with one, 18 min of CPU in 10.7 min (the same two tests: 28 s and 34 s).
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 logging.getLogger("mani_skill").setLevel(logging.ERROR)
 
