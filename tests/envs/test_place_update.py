@@ -6,10 +6,10 @@ import pytest
 import torch
 
 import aerobench.envs  # noqa: F401
-from aerobench.envs.kernels import Kernel
 from aerobench.envs.skills.place import PlaceUpdate, place_update_kernel
 from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
+from tests.envs.kernel_checks import assert_compiled_is_eager
 
 pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
 
@@ -47,13 +47,9 @@ def _set_down_inputs():
 
 def test_compiled_place_update_is_the_eager_one_and_keeps_inactive_trackers(aot_cache):
     env, eager, inputs = _set_down_inputs()
-    reference = PlaceUpdate(*eager(*inputs))
+    reference = PlaceUpdate(*assert_compiled_is_eager(eager, "place_evaluator", "test", inputs, PlaceUpdate._fields,
+                                                      atol=1e-6))
     assert bool(reference.support_contact.all()) and int(reference.set_down_streak[0]) >= 2
-    kernel = Kernel(eager, "place_evaluator", "test", [], "cpu", compile=True)
-    compiled = PlaceUpdate(*kernel(*inputs))
-    assert kernel.backend == "compiled ahead of time", kernel.backend
-    for name, a, b in zip(PlaceUpdate._fields, compiled, reference):
-        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-6, msg=name)
     idle = list(inputs)
     idle[MINE] = torch.zeros_like(inputs[MINE])  # another chain stage is active: the trackers stay
     held = PlaceUpdate(*eager(*idle))
