@@ -42,7 +42,9 @@ class ContactReader:
         n = scene.num_envs
         self._zeros2 = torch.zeros(n, 2, 3, device=scene.device)
         self._zeros1 = torch.zeros(n, 3, device=scene.device)
-        self._body_index: tuple[dict, dict, object, set, set] | None = None
+        self._bodies: tuple[dict, dict, object, set] | None = None
+        self._routes: dict[tuple, int] = {}  # body pair -> index in _route_rows
+        self._route_rows: list[tuple[tuple[int, float], ...]] = [()]
 
     def read(self) -> ContactReadout:
         if self.scene.gpu_sim_enabled:
@@ -59,46 +61,66 @@ class ContactReader:
             on_handle = on_handle + torch.stack([self.scene.get_pairwise_contact_forces(f, handle) for f in self.fingers], 1)
         return ContactReadout(links, on_target, target_net, on_handle)
 
-    def _bodies(self) -> tuple[dict, dict, object, set, set]:
+    def _route(self, body0, body1) -> int:
+        """The index in `self._route_rows` of what a contact between `body0` and `body1` adds its impulse to: readout
+        rows (links, then the fingers' force from the target, the target's net force, the fingers' force from the
+        handles) with the sign it adds them with, as it acts on `body0` and with minus itself on `body1`. Index 0 is
+        no row: a pair the readout does not follow (e.g. a distractor on its support)."""
+        link_of, finger_of, target, handles = self._body_index()
+        n_links = len(self.link_names)
+        rows: list[tuple[int, float]] = []
+        for me, other, sign in ((body0, body1, 1.0), (body1, body0, -1.0)):
+            if me in link_of:
+                rows.append((link_of[me], sign))
+            if me in finger_of:
+                if target is not None and other is target:
+                    rows.append((n_links + finger_of[me], sign))
+                if other in handles:
+                    rows.append((n_links + 3 + finger_of[me], sign))
+            if target is not None and me is target:
+                rows.append((n_links + 2, sign))
+        if not rows:
+            return 0
+        if tuple(rows) not in self._route_rows:
+            self._route_rows.append(tuple(rows))
+        return self._route_rows.index(tuple(rows))
+
+    def _body_index(self) -> tuple[dict, dict, object, set]:
         # PhysX bodies by their Python wrapper: pybind returns the one wrapper of a live C++ object, and ManiSkill
         # holds each body's, so a contact's `bodies` are these very objects and an identity lookup finds them (a
         # lookup through `body.entity.per_scene_id` costs two more wrappers per body). Found once per scene.
-        if self._body_index is None:
+        if self._bodies is None:
             def body(obj):
                 return obj._bodies[0]
 
             link_of = {body(self.robot.links_map[n]): i for i, n in enumerate(self.link_names)}
             finger_of = {body(f): k for k, f in enumerate(self.fingers)}
             target = body(self.target) if self.target is not None else None
-            handles = {body(h) for h in self.handles}
-            # every body a readout sums forces on (the links, the target): contacts between two others are skipped
-            relevant = set(link_of) | set(finger_of) | ({target} if target is not None else set())
-            self._body_index = (link_of, finger_of, target, handles, relevant)
-        return self._body_index
+            self._bodies = (link_of, finger_of, target, {body(h) for h in self.handles})
+        return self._bodies
 
     def _read_cpu(self) -> ContactReadout:
-        link_of, finger_of, target, handles, relevant = self._bodies()
-        links = np.zeros((len(self.link_names), 3))
-        on_target, on_handle, target_net = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(3)
+        # Python touches each point of a followed contact once (its impulse, a 3-vector). The points are gathered per
+        # route (pairs that feed the same rows with the same signs: e.g. every shape of a resting object against its
+        # support) and each route's sum is one numpy call. The route of a body pair is found once and kept.
+        routes = self._routes
+        gathered: dict[int, list[np.ndarray]] = {}
         for contact in self.scene.px.get_contacts():
-            body0, body1 = contact.bodies
-            if body0 not in relevant and body1 not in relevant:  # e.g. a distractor on its support
-                continue
-            # acts on bodies[0]; -impulse on bodies[1]. A plain sum: np.sum of a short list costs more than its adds
-            impulse = sum(p.impulse for p in contact.points)
-            for me, other, sign in ((body0, body1, 1.0), (body1, body0, -1.0)):
-                if me in link_of:
-                    links[link_of[me]] += sign * impulse
-                if me in finger_of:
-                    if other is target:
-                        on_target[finger_of[me]] += sign * impulse
-                    if other in handles:
-                        on_handle[finger_of[me]] += sign * impulse
-                if me is target:
-                    target_net += sign * impulse
-        dt = self.scene.timestep
-
-        def t(a):
-            return torch.as_tensor(a / dt, dtype=torch.float32)[None]
-
-        return ContactReadout(t(links), t(on_target), t(target_net), t(on_handle))
+            pair = tuple(contact.bodies)
+            route = routes.get(pair)
+            if route is None:
+                route = routes[pair] = self._route(*pair)
+            if route:
+                points = gathered.get(route)
+                if points is None:
+                    points = gathered[route] = []
+                points.extend([p.impulse for p in contact.points])
+        out = np.zeros((len(self.link_names) + 5, 3))
+        for route, points in gathered.items():
+            if points:
+                total = np.concatenate(points).reshape(-1, 3).sum(axis=0, dtype=np.float64)
+                for row, sign in self._route_rows[route]:
+                    out[row] += sign * total
+        forces = torch.as_tensor(out / self.scene.timestep, dtype=torch.float32)[None]
+        n = len(self.link_names)
+        return ContactReadout(forces[:, :n], forces[:, n : n + 2], forces[:, n + 2], forces[:, n + 3 : n + 5])

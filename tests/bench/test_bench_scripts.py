@@ -22,6 +22,7 @@ import diversity  # noqa: E402
 import learning_curves  # noqa: E402
 import release_aliasing  # noqa: E402
 import step_cost  # noqa: E402
+import step_floor  # noqa: E402
 
 from aerobench.rollout.episode import EVENT_FLAGS  # noqa: E402
 
@@ -284,3 +285,17 @@ def test_descent_onset_finds_the_switch_the_still_frames_and_a_parked_episode(tm
     assert descent_onset.parked(np.stack([_pick_frame(0.01, 0.001, 0.0)[0]] * 10), window=5, still=0.01) is None
     with pytest.raises(SystemExit):
         descent_onset.main([str(tmp_path / "missing")])
+
+
+def test_step_floor_prints_each_variant_and_the_floor_against_the_bare_step(capsys):
+    rows = step_floor.main(["--envs", "AeroFly-v1", "--windows", "2", "--steps", "2"])
+    row = rows["AeroFly-v1"]
+    assert list(row) == [step_floor.BARE, step_floor.READS, step_floor.MANISKILL, step_floor.CONTROLLER,
+                         step_floor.WHOLE]
+    assert all(ms > 0 for ms in row.values())
+    assert row[step_floor.WHOLE] > row[step_floor.BARE]  # observation, evaluation, controller: several times bare
+    out = capsys.readouterr().out
+    floor_line = next(line for line in out.splitlines() if line.strip().startswith(step_floor.FLOOR))
+    ms, ratio = float(floor_line.split()[-3]), float(floor_line.split()[-1].rstrip("x"))
+    floor = step_floor.floor_ms(row)
+    assert ms == pytest.approx(floor, abs=1e-3) and ratio == pytest.approx(floor / row[step_floor.BARE], abs=0.01)

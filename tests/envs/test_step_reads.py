@@ -34,3 +34,26 @@ def test_the_cpu_reader_gives_maniskills_per_pair_and_net_forces_while_an_object
         compared += 1
     env.close()
     assert compared >= 10, compared
+
+
+def test_the_cpu_reader_gives_maniskills_finger_forces_from_a_fixtures_handle_parts():
+    env = gym.make("AeroOpen-v1", num_envs=1, setting="PrepareGroceries")
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    policy = make_policy("expert", base)
+    policy.reset(torch.arange(1))
+    scene, fingers, handles = base.scene, base.agent.finger_links, base.contacts.handles
+    assert handles
+    compared = 0
+    for _ in range(400):
+        obs, _, terminated, truncated, _ = env.step(policy.act(obs))
+        if bool(terminated.any() | truncated.any()):
+            break
+        readout = base.contacts.read()
+        on_handle = sum(torch.stack([scene.get_pairwise_contact_forces(f, h) for f in fingers], 1) for h in handles)
+        torch.testing.assert_close(readout.finger_on_handle, on_handle, rtol=1e-5, atol=1e-4)
+        torch.testing.assert_close(readout.link_forces, base.agent.robot.get_net_contact_forces(base.contacts.link_names),
+                                   rtol=1e-5, atol=1e-4)
+        compared += int(float(on_handle.norm(dim=-1).max()) > 0.5)  # a finger pushes a handle part: a real comparison
+    env.close()
+    assert compared >= 5, compared
