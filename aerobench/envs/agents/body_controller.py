@@ -9,6 +9,7 @@ PD mimic controller combined after it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -52,6 +53,7 @@ class AerialBodyController(BaseController):
         self.leading_joints = idx == list(range(len(idx)))
         self._joints = slice(idx[0], idx[-1] + 1) if idx == list(range(idx[0], idx[-1] + 1)) else self.active_joint_indices
         self._qf = None
+        self._efforts_loop: tuple[object, Callable] | None = None  # (the step it is for, `step_fn.efforts_loop`)
         # physx_cpu holds one env: the PhysX articulation itself is read and written every physics step (ManiSkill's
         # batched wrapper around it costs several microseconds per call, a sizeable share of a 240 Hz step)
         self._cpu_articulation = None if self.scene.gpu_sim_enabled else self.articulation._objs[0]
@@ -120,7 +122,12 @@ class AerialBodyController(BaseController):
             tensors += [self.arm_target, self.contact_mode]
         if self.telemetry is None and self.leading_joints:
             # the lean step: whole joint vectors in, every joint's effort out (the fingers' zero), nothing else
-            efforts, m.xi, m.yaw_des = self.step_fn.efforts(*tensors)
+            loop = self._efforts_loop
+            if loop is None or loop[0] is not self.step_fn:  # the first call builds or loads the package
+                efforts, m.xi, m.yaw_des = self.step_fn.efforts(*tensors)
+                self._efforts_loop = (self.step_fn, self.step_fn.efforts_loop(tensors))
+            else:
+                efforts, m.xi, m.yaw_des = loop[1](tensors)
             self._needs_yaw_sync.zero_()
             if cpu is not None:
                 cpu.set_qf(efforts.numpy()[0])

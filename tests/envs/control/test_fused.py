@@ -134,6 +134,32 @@ def test_a_compiled_call_keeps_nothing_alive_and_its_outputs_are_its_own(aot_cac
     assert [r() is None for r in refs + outputs] == [True] * (len(refs) + len(outputs))
 
 
+def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_cache):
+    """`efforts_loop`, what the body controller calls at every physics step after the first: the package itself
+    where one runs, with the kernel's numbers; the controller memory it returns is the caller's; a non-contiguous
+    input goes through the kernel's wrapper (the package reads raw memory); without a package, the kernel."""
+    spec, tensors = _tensors("gripper", n=1)
+    fingers = torch.randn(1, 2)
+    inputs = [torch.cat([tensors[0], fingers], -1), torch.cat([tensors[1], -fingers], -1), *(t.clone() for t in tensors[2:])]
+    step = FusedPhysicsStep(spec, "cpu", compile=True)
+    first = step.efforts(*inputs)  # builds or loads the package
+    assert step.kernels["efforts"].package(*inputs) is not None
+    loop = step.efforts_loop(inputs)
+    looped = loop(inputs)
+    assert all(torch.equal(a, b) for a, b in zip(looped, first))
+    memory = [t.clone() for t in looped[1:]]
+    inputs[2] = -inputs[2]  # another velocity command
+    again = loop(inputs)
+    assert not torch.equal(again[0], first[0]) and all(torch.equal(a, b) for a, b in zip(looped[1:], memory))
+    strided = list(inputs)
+    strided[4] = torch.stack([inputs[4], inputs[4]], -1)[..., 0]  # xi, the same values in a strided view
+    assert not strided[4].is_contiguous() and torch.equal(strided[4], inputs[4])
+    assert all(torch.equal(a, b) for a, b in zip(loop(strided), step.efforts(*inputs)))
+    eager = FusedPhysicsStep(spec, "cpu", compile=False)
+    assert eager.kernels["efforts"].package(*inputs) is None
+    assert all(torch.equal(a, b) for a, b in zip(eager.efforts_loop(inputs)(inputs), eager.eager_efforts(*inputs)))
+
+
 def test_torch_compiled_step_matches_the_eager_one():
     """The path of GPUs, and of CPUs where the ahead-of-time build fails."""
     spec, tensors = _tensors("arm")
