@@ -11,7 +11,6 @@ import sapien
 import torch
 import transforms3d
 from mani_skill.agents.base_agent import BaseAgent
-from mani_skill.agents.controllers import PDJointPosMimicControllerConfig
 from mani_skill.sensors.camera import CameraConfig
 from mani_skill.utils import common, sapien_utils
 from mani_skill.utils.structs import Actor, Pose
@@ -30,6 +29,7 @@ from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
 from ..poses import pose_of
 from .body_controller import AerialBodyController, AerialBodyControllerConfig
+from .finger_controller import FingerControllerConfig
 
 # PhysX needs a mass on every link; the virtual links carry a negligible one (0.02% of the airframe in total) and
 # no gravity, so the virtual joints add no force of their own.
@@ -209,7 +209,7 @@ class AerialAgent(BaseAgent):
             body = AerialBodyControllerConfig(
                 joint_names=list(VIRTUAL_JOINT_NAMES) + list(self.arm_joint_names), platform=self.platform, mode=mode.value
             )
-            gripper = PDJointPosMimicControllerConfig(
+            gripper = FingerControllerConfig(
                 list(FINGER_JOINT_NAMES),
                 lower=0.0,
                 upper=g.max_opening_m / 2,
