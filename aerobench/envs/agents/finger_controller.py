@@ -2,10 +2,10 @@
 
 The gripper command is one number (open ... closed) that the expert and most policies hold for whole phases of an
 episode. Applying it is ManiSkill's `PDJointPosMimicController.set_action` (scale and clip, the mimic mapping, the
-drive targets through ManiSkill's joint wrappers): about 70 us per control step on one physx_cpu env, 8% of an
-AeroFly-v1 step. With `use_delta=False` and `interpolate=False` (the airframe's configuration) the same command gives
-the same drive targets, which PhysX still holds, so a repeated command is skipped. On the GPU it is always applied:
-comparing with the last command there would wait for the device at every control step.
+drive targets through ManiSkill's joint wrappers): about 70 us per control step on one physx_cpu env, and a step
+is 5-9% cheaper without it (docs/performance.md). With `use_delta=False` and `interpolate=False` (the airframe's
+configuration) the same command gives the same drive targets, which PhysX still holds, so a repeated command is
+skipped. On the GPU it is always applied: comparing with the last command there would wait for the device.
 """
 
 from __future__ import annotations
