@@ -185,8 +185,8 @@ class FusedPhysicsStep:
     def efforts_loop(self, tensors: Sequence[torch.Tensor]) -> Callable[[list[torch.Tensor]], tuple[torch.Tensor, ...]]:
         """`efforts` for the 240 Hz loop, for inputs shaped like `tensors` (after a first `efforts` call with them),
         taking the input list. Where a CPU package runs the step, it calls the package itself and copies `xi` and
-        `yaw_des`: about 5 us a call less than through the kernel's wrapper, at 12 calls per control step. The efforts
-        it returns may be the package's buffer: use them before the next call."""
+        `yaw_des`: about 3 us a call less than through the kernel's wrapper, at 12 calls per control step
+        (docs/performance.md). The efforts it returns may be the package's buffer: use them before the next call."""
         run = self.kernels["efforts"].package(*tensors)
         if run is None:
             return lambda inputs: self.efforts(*inputs)
