@@ -34,9 +34,13 @@ def test_a_repeated_command_is_skipped_a_new_one_or_a_reset_applies(monkeypatch)
     action[:, -1] = -1.0  # close
     env.step(action)
     assert len(applied) == 2 and _finger_targets(base) == pytest.approx([0.0, 0.0])
+    fingers = base.agent.controller.controllers["gripper"]
+    fingers.joints[0]._objs[0].set_drive_target(np.full(1, 0.01, dtype=np.float32))  # e.g. another mode's controller
+    env.step(action)  # the same command, but PhysX no longer holds its targets: applied again
+    assert len(applied) == 3 and _finger_targets(base) == pytest.approx([0.0, 0.0])
     env.reset(seed=1)
     env.step(action)  # after a reset the first command applies, equal or not to the last one
-    assert len(applied) == 3
+    assert len(applied) == 4
     env.close()
 
 

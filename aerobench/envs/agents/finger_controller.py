@@ -4,8 +4,9 @@ The gripper command is one number (open ... closed) that the expert and most pol
 episode. Applying it is ManiSkill's `PDJointPosMimicController.set_action` (scale and clip, the mimic mapping, the
 drive targets through ManiSkill's joint wrappers): about 70 us per control step on one physx_cpu env, and a step
 is 5-9% cheaper without it (docs/performance.md). With `use_delta=False` and `interpolate=False` (the airframe's
-configuration) the same command gives the same drive targets, which PhysX still holds, so a repeated command is
-skipped. On the GPU it is always applied: comparing with the last command there would wait for the device.
+configuration) the same command gives the same drive targets, so a repeated command is skipped while PhysX still
+holds the targets it set. On the GPU it is always applied: comparing with the last command there would wait for the
+device.
 """
 
 from __future__ import annotations
@@ -23,20 +24,26 @@ class FingerController(PDJointPosMimicController):
         super().__init__(*args, **kwargs)
         if self.config.use_delta or self.config.interpolate:
             raise ValueError("FingerController skips repeated absolute targets: use_delta and interpolate must be False")
-        self._applied: torch.Tensor | None = None  # the last command applied (physx_cpu)
+        # physx_cpu: the PhysX joints themselves, to confirm that they still hold the targets applied last (another
+        # control mode's controller, or any other code, may have moved them since)
+        self._cpu_joints = None if self.scene.gpu_sim_enabled else [joint._objs[0] for joint in self.joints]
+        self._applied: tuple[torch.Tensor, list[float]] | None = None  # the last command and its drive targets
 
     def reset(self):
         super().reset()  # the reset envs' targets become their current joint positions: the next command applies
         self._applied = None
 
     def set_action(self, action: torch.Tensor):
-        if self.scene.gpu_sim_enabled:
+        joints = self._cpu_joints
+        if joints is None:
             super().set_action(action)
             return
-        if self._applied is not None and torch.equal(action, self._applied):
-            return  # the same targets as the ones PhysX holds
+        applied = self._applied
+        if (applied is not None and torch.equal(action, applied[0])
+                and all(float(j.get_drive_target()[0]) == t for j, t in zip(joints, applied[1]))):
+            return  # PhysX holds the very targets this command gives
         super().set_action(action)
-        self._applied = action.clone()
+        self._applied = (action.clone(), [float(j.get_drive_target()[0]) for j in joints])
 
 
 @dataclass
