@@ -25,6 +25,10 @@ class ContactReadout:
 class ContactReader:
     """Reads `ContactReadout`s for one robot, its fingers, an optional target object and handle-carrying links."""
 
+    # the CPU readout's rows after the links': each finger's force from the target, the target's net force, each
+    # finger's force from the handle parts
+    ON_TARGET, TARGET_NET, ON_HANDLE, EXTRA_ROWS = 0, 2, 3, 5
+
     def __init__(
         self,
         scene,
@@ -74,16 +78,17 @@ class ContactReader:
                 rows.append((link_of[me], sign))
             if me in finger_of:
                 if target is not None and other is target:
-                    rows.append((n_links + finger_of[me], sign))
+                    rows.append((n_links + self.ON_TARGET + finger_of[me], sign))
                 if other in handles:
-                    rows.append((n_links + 3 + finger_of[me], sign))
+                    rows.append((n_links + self.ON_HANDLE + finger_of[me], sign))
             if target is not None and me is target:
-                rows.append((n_links + 2, sign))
-        if not rows:
+                rows.append((n_links + self.TARGET_NET, sign))
+        route = tuple(rows)
+        if not route:
             return 0
-        if tuple(rows) not in self._route_rows:
-            self._route_rows.append(tuple(rows))
-        return self._route_rows.index(tuple(rows))
+        if route not in self._route_rows:
+            self._route_rows.append(route)
+        return self._route_rows.index(route)
 
     def _body_index(self) -> tuple[dict, dict, object, set]:
         # PhysX bodies by their Python wrapper: pybind returns the one wrapper of a live C++ object, and ManiSkill
@@ -115,12 +120,14 @@ class ContactReader:
                 if points is None:
                     points = gathered[route] = []
                 points.extend([p.impulse for p in contact.points])
-        out = np.zeros((len(self.link_names) + 5, 3))
+        n = len(self.link_names)
+        out = np.zeros((n + self.EXTRA_ROWS, 3))
         for route, points in gathered.items():
             if points:
                 total = np.concatenate(points).reshape(-1, 3).sum(axis=0, dtype=np.float64)
                 for row, sign in self._route_rows[route]:
                     out[row] += sign * total
         forces = torch.as_tensor(out / self.scene.timestep, dtype=torch.float32)[None]
-        n = len(self.link_names)
-        return ContactReadout(forces[:, :n], forces[:, n : n + 2], forces[:, n + 2], forces[:, n + 3 : n + 5])
+        on_target, on_handle = n + self.ON_TARGET, n + self.ON_HANDLE
+        return ContactReadout(forces[:, :n], forces[:, on_target : on_target + 2], forces[:, n + self.TARGET_NET],
+                              forces[:, on_handle : on_handle + 2])
