@@ -106,6 +106,9 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
         return torch._inductor.aoti_load_package(str(path)).loader.run
 
 
+_size, _is_contiguous = torch.Tensor.size, torch.Tensor.is_contiguous
+
+
 def _owned(outputs: Sequence[torch.Tensor]) -> list[torch.Tensor]:
     """A package with stack-allocated intermediates returns the same output buffers at every call: copies, so that
     memory fed back (and anything a caller keeps) is not overwritten by the next call (about a microsecond each)."""
@@ -137,7 +140,8 @@ class Kernel:
         self._compile_failed = False
         self._aot: dict[object, Callable] = {}  # per shape key: the loaded package
         self.aot_ok = compile and str(device) == "cpu" and self._mode is None
-        self._fast: tuple[object, Callable] | None = None  # the package for the shapes seen last
+        # the package for the shapes seen last: (its shape key, the package, the sizes of the call that found it)
+        self._fast: tuple[object, Callable, tuple] | None = None
 
     def _free_shapes(self, tensors: tuple[torch.Tensor, ...]) -> tuple:
         """The input shapes, a free dimension left out: one package (loaded once) serves every size of it."""
@@ -148,9 +152,14 @@ class Kernel:
     def __call__(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...] | list[torch.Tensor]:
         if not self._compile:
             return self.fn(*tensors)
-        shapes = self._shape_key(tensors)
         fast = self._fast
-        if fast is not None and shapes == fast[0]:
+        if fast is not None and fast[2] == tuple(map(_size, tensors)):  # the very sizes of the last call's package
+            self.backend = "compiled ahead of time"
+            inputs = list(tensors) if all(map(_is_contiguous, tensors)) else [t.contiguous() for t in tensors]
+            return _owned(fast[1](inputs))
+        shapes = self._shape_key(tensors)
+        if fast is not None and shapes == fast[0]:  # another size of a free dimension: the same package
+            self._fast = (shapes, fast[1], tuple(map(_size, tensors)))
             self.backend = "compiled ahead of time"
             return _owned(fast[1]([t if t.is_contiguous() else t.contiguous() for t in tensors]))
         if self.aot_ok:
@@ -164,7 +173,7 @@ class Kernel:
                     self.aot_ok = False
                     self._report("ahead-of-time compilation", exc, "running torch.compile instead")
             if run is not None:
-                self._fast = (shapes, run)
+                self._fast = (shapes, run, tuple(map(_size, tensors)))
                 self.backend = "compiled ahead of time"
                 return _owned(run([t if t.is_contiguous() else t.contiguous() for t in tensors]))
         compiled = self._compiled_fn()

@@ -104,7 +104,8 @@ def proprio_state(
 ) -> torch.Tensor:
     """`(N, 19)` (or `(N, 25)` with the arm) in the layout above."""
     R = airframe.rotation
-    parts = [airframe.position, R[:, :, 0], R[:, :, 1], airframe.velocity, airframe.angular_velocity_body, finger_q, finger_qd]
+    orientation_6d = R[:, :, :2].transpose(1, 2).reshape(R.shape[0], 6)  # R's first column, then its second
+    parts = [airframe.position, orientation_6d, airframe.velocity, airframe.angular_velocity_body, finger_q, finger_qd]
     if arm_q is not None and arm_q.shape[-1] > 0:
         parts += [arm_q, arm_qd]
     return torch.cat(parts, dim=-1).float()

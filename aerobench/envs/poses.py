@@ -28,3 +28,12 @@ def pose_of(body: Actor | Link) -> Pose:
     if body.scene.gpu_sim_enabled or len(body._objs) != 1:
         return body.pose
     return Pose(raw_pose=raw_pose_of(body))
+
+
+def raw_quats_of(bodies: list[Actor | Link]) -> torch.Tensor:
+    """The orientations (wxyz) of `bodies`, `(N, len(bodies), 4)`; on physx_cpu one array from the SAPIEN entities."""
+    if any(b.scene.gpu_sim_enabled or len(b._objs) != 1 for b in bodies):
+        return torch.stack([raw_pose_of(b)[:, 3:] for b in bodies], 1)
+    objs = [b._objs[0] for b in bodies]
+    poses = [obj.entity_pose if isinstance(b, Link) else obj.pose for b, obj in zip(bodies, objs)]
+    return torch.from_numpy(np.stack([pose.q for pose in poses]))[None]

@@ -37,7 +37,12 @@ def test_compiled_signals_are_the_eager_ones_for_any_box_count(aot_cache):
     kernel = Kernel(eager, "shared_signals", "test", [], "cpu", compile=True, dynamic={BOXES_INPUT: 1})
     fewer = list(tensors)
     fewer[BOXES_INPUT] = tensors[BOXES_INPUT][:, : tensors[BOXES_INPUT].shape[1] // 2]
-    for inputs in (tensors, fewer):  # one package serves both: the box count is a free dimension
+    strided = list(tensors)
+    strided[0] = torch.stack([tensors[0], tensors[0]], -1)[..., 0]  # the same joints, read through a strided view
+    assert not strided[0].is_contiguous()
+    # one package serves all: the box count is a free dimension (each size twice in a row: the call that finds the
+    # package, then the one with the very sizes of the last); a strided input is read as its contiguous copy
+    for inputs in (tensors, tensors, fewer, fewer, tensors, strided):
         compiled, reference = SharedSignals.from_flat(kernel(*inputs)), SharedSignals.from_flat(eager(*inputs))
         assert kernel.backend == "compiled ahead of time", kernel.backend
         for name, a, b in zip(SharedSignals._fields, compiled, reference):

@@ -129,3 +129,45 @@ def test_a_goal_in_another_room_shows_the_doorway_to_fly_through():
         assert torch.linalg.norm(f["doorway_pos"][:2]).item() == pytest.approx(1.0 + 0.125, abs=1e-3)
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_the_proprioceptive_state_is_its_documented_fields(platform):
+    """`obs["agent"]["state"]` in the layout of `observations.STATE_FIELDS` (+ the arm's), from the joints as ManiSkill
+    reads them: the columns it takes by slice are the named joints'."""
+    from aerobench.envs.control.virtual_joints import airframe_state_from_joints
+    from aerobench.envs.observations import ARM_STATE_FIELDS, STATE_FIELDS
+
+    env = gym.make("AeroPick-v1", obs_mode="state_dict", platform=platform)
+    env.reset(seed=0)
+    base = env.unwrapped
+    env.step(torch.zeros(1, base.platform.action_dim))
+    agent = base.agent
+    # every joint moving, each at its own rate (the fingers settle within a control step: set them)
+    q = agent.robot.get_qpos().clone()
+    q[:, -2:] = torch.tensor([0.011, 0.013])
+    agent.robot.set_qpos(q)
+    agent.robot.set_qvel(torch.linspace(0.05, 0.3, q.shape[1])[None])
+    base._signals_step = -1  # the joints changed without a step: recompute the step's signals
+    obs = base.get_obs()
+    q, qd = agent.robot.get_qpos(), agent.robot.get_qvel()
+
+    def columns(names):
+        return [agent.robot.active_joints_map[n].active_index[0] for n in names]
+
+    v = columns(["root_x", "root_y", "root_z", "root_yaw", "root_pitch", "root_roll"])
+    airframe = airframe_state_from_joints(q[:, v], qd[:, v])
+    fingers, arm = columns(["finger_left", "finger_right"]), columns(agent.arm_joint_names)
+    expected = {
+        "position": airframe.position, "orientation_6d": torch.cat([airframe.rotation[:, :, 0], airframe.rotation[:, :, 1]], -1),
+        "linear_velocity": airframe.velocity, "angular_velocity_body": airframe.angular_velocity_body,
+        "finger_position": q[:, fingers], "finger_velocity": qd[:, fingers],
+        "arm_position": q[:, arm], "arm_velocity": qd[:, arm],
+    }
+    fields = STATE_FIELDS + (ARM_STATE_FIELDS if platform == "arm" else ())
+    state = obs["agent"]["state"]
+    assert state.shape == (1, sum(n for _, n in fields))
+    for name, sl in field_slices(fields).items():
+        torch.testing.assert_close(state[:, sl], expected[name], rtol=1e-5, atol=1e-6, msg=name)
+    assert float(qd[:, fingers].abs().min()) > 0.1 and float(q[:, fingers].min()) > 0.01
+    env.close()

@@ -28,7 +28,7 @@ from ..control.virtual_joints import (
 from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
 from ..poses import pose_of
-from .body_controller import AerialBodyController, AerialBodyControllerConfig
+from .body_controller import AerialBodyController, AerialBodyControllerConfig, joint_columns
 from .finger_controller import FingerControllerConfig
 
 # PhysX needs a mass on every link; the virtual links carry a negligible one (0.02% of the airframe in total) and
@@ -197,6 +197,9 @@ class AerialAgent(BaseAgent):
             [self.robot.active_joints_map[n].active_index[0] for n in VIRTUAL_JOINT_NAMES], device=self.device
         )
         self.finger_joint_indices = [self.robot.active_joints_map[n].active_index[0] for n in FINGER_JOINT_NAMES]
+        # the fingers' and the arm's columns of the joint vectors, read every control step (a slice where they run)
+        self.finger_joints = joint_columns(self.finger_joint_indices, self.device)
+        self.arm_joints = joint_columns(self._arm_indices(), self.device) if self.arm_joint_names else None
 
     # ----------------------------------------------------------------------------------------------------------------
     # Controllers and sensors
@@ -290,11 +293,11 @@ class AerialAgent(BaseAgent):
         """The documented proprioceptive state (`observations.STATE_FIELDS`), `(N, 19)` or `(N, 25)` with the arm;
         `state`: this step's airframe state where the caller already has it."""
         q, qd = self.joint_state()
-        fingers = self.finger_joint_indices
-        arm = [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
+        fingers, arm = self.finger_joints, self.arm_joints
         state = self.airframe_state() if state is None else state
-        state = proprio_state(state, q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])
-        return {"state": state}
+        if arm is None:
+            return {"state": proprio_state(state, q[:, fingers], qd[:, fingers])}
+        return {"state": proprio_state(state, q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])}
 
     def arm_qpos(self) -> torch.Tensor:
         """Arm joint positions `(N, 3)` (shoulder, elbow, wrist); empty `(N, 0)` on the gripper platform."""

@@ -9,7 +9,7 @@ PD mimic controller combined after it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -20,9 +20,18 @@ from mani_skill.agents.controllers.base_controller import BaseController, Contro
 from ..control.arm import normalized_arm_action
 from ..control.flight import FlightMemory, FlightOutput
 from ..control.fused import fused_physics_step
-from ..control.payload import ControllerMode, update_payload_estimate
+from ..control.payload import ControllerMode
 from ..control.virtual_joints import AirframeState
 from ..platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PlatformSpec
+
+
+def joint_columns(indices: Sequence[int], device: torch.device | str) -> slice | torch.Tensor:
+    """The columns `indices` of `(N, J)` joint vectors: a slice where they are one ascending run (a view, read at
+    no gather's cost: a per-step read of a few columns by a list costs microseconds), else an index tensor."""
+    idx = [int(i) for i in indices]
+    if idx and idx == list(range(idx[0], idx[-1] + 1)):
+        return slice(idx[0], idx[-1] + 1)
+    return torch.tensor(idx, dtype=torch.long, device=device)
 
 
 class AerialBodyController(BaseController):
@@ -51,7 +60,7 @@ class AerialBodyController(BaseController):
         # the controller's joints lead the articulation's (fingers follow): plain slices, no gather/scatter per step,
         # and the lean step reads the whole joint vectors and writes every joint's effort
         self.leading_joints = idx == list(range(len(idx)))
-        self._joints = slice(idx[0], idx[-1] + 1) if idx == list(range(idx[0], idx[-1] + 1)) else self.active_joint_indices
+        self._joints = joint_columns(idx, self.device)
         self._qf = None
         self._efforts_loop: tuple[object, Callable] | None = None  # (the step it is for, `step_fn.efforts_loop`)
         # physx_cpu holds one env: the PhysX articulation itself is read and written every physics step (ManiSkill's
@@ -183,7 +192,7 @@ class AerialBodyController(BaseController):
     # ----------------------------------------------------------------------------------------------------------------
     def update_payload(self, is_grasped: torch.Tensor, is_set_down: torch.Tensor, object_mass: torch.Tensor) -> None:
         """Payload-aware switches for this control step (no-op on m_hat and gains for the nominal controller)."""
-        self.memory = update_payload_estimate(self.memory, self.params, is_grasped, is_set_down, object_mass, self.mode)
+        self.memory = self.step_fn.payload_update(self.memory, is_grasped, is_set_down, object_mass, self.mode)
 
     def set_contact_mode(self, pinched: torch.Tensor) -> None:
         """Arm platform: limp shoulder and no arm feedforward while pinched; on release the integrator resets."""

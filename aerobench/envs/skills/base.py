@@ -37,7 +37,7 @@ from ..control.virtual_joints import AirframeState
 from ..geometry import drone_proxy_points_body, min_distance_to_boxes, pack_boxes, point_box_distance
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
-from ..poses import raw_pose_of
+from ..poses import raw_pose_of, raw_quats_of
 from ..scenes import generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
@@ -313,6 +313,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
     # ----------------------------------------------------------------------------------------------------------------
     def _after_control_step(self):
         self._episode_step += 1
+        # the key of the step's cached signals: a count on the host (a sum of ManiSkill's elapsed-step tensor costs a
+        # reduction and a sync at each of the step's half a dozen `evaluate()` calls)
+        self._control_steps = getattr(self, "_control_steps", 0) + 1
 
     def current_step_context(self) -> StepContext:
         """This control step's shared context (airframe state, tool centre point, contacts, object), computed once
@@ -329,8 +332,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         q_v, qd_v = agent.virtual_joints(q, qd)
         readout = self.contacts.read()
         tensors = [
-            q_v, qd_v, raw_pose_of(agent.grasp_link), torch.stack([raw_pose_of(f)[:, 3:] for f in agent.finger_links], 1),
-            readout.link_forces, readout.finger_on_target, readout.target_net, q[:, agent.finger_joint_indices],
+            q_v, qd_v, raw_pose_of(agent.grasp_link), raw_quats_of(agent.finger_links),
+            readout.link_forces, readout.finger_on_target, readout.target_net, q[:, agent.finger_joints],
             self.workspace_lo, self.workspace_hi, self.proxy_points, self.obstacle_boxes(),
         ]
         if self.target is not None:
@@ -366,8 +369,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         return ctx
 
     def evaluate(self) -> dict:
-        """All per-step signals, `(N,)` tensors; computed once per control step (ManiSkill may call this again)."""
-        step_id = int(self._elapsed_steps.sum()) if self.num_envs else 0
+        """All per-step signals, `(N,)` tensors; computed once per control step (ManiSkill may call this again): a
+        reset, or setting `_signals_step` to -1 after moving bodies without a step, computes them again."""
+        step_id = getattr(self, "_control_steps", 0)
         if getattr(self, "_signals_step", -1) == step_id and hasattr(self, "_signals"):
             return self._signals
         ctx = self._ctx = self.step_context()

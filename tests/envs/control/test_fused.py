@@ -9,6 +9,7 @@ from aerobench.envs import kernels
 from aerobench.envs.control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
 from aerobench.envs.control.flight import FlightMemory, FlightParams, flight_step
 from aerobench.envs.control.fused import FusedPhysicsStep, physics_step
+from aerobench.envs.control.payload import ControllerMode, update_payload_estimate
 from aerobench.envs.control.virtual_joints import airframe_state_from_joints, joint_efforts_from_wrench
 from aerobench.envs.platforms import get_platform
 from tests.envs.host_sync import NoHostSync
@@ -158,6 +159,39 @@ def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_c
     eager = FusedPhysicsStep(spec, "cpu", compile=False)
     assert eager.kernels["efforts"].package(*inputs) is None
     assert all(torch.equal(a, b) for a, b in zip(eager.efforts_loop(inputs)(inputs), eager.eager_efforts(*inputs)))
+
+
+def test_the_compiled_payload_switches_are_the_eager_ones(aot_cache):
+    """`FusedPhysicsStep.payload_update`, once per control step: compiled ahead of time, the memory the eager
+    switches give over grasps, a set-down and a lost grasp, in three envs at once; the nominal controller's too."""
+    spec = get_platform("gripper")
+    params = FlightParams.from_platform(spec)
+    compiled = FusedPhysicsStep(spec, "cpu", compile=True)
+    mass = torch.tensor([0.37, 0.15, 0.6])
+    T, F = True, False
+    steps = [  # (is_grasped, is_set_down) per env
+        ([T, T, F], [F, F, F]), ([T, T, T], [F, F, F]), ([T, T, T], [F, F, F]), ([T, F, T], [F, F, F]),
+        ([T, F, T], [T, F, F]), ([T, T, F], [T, F, F]), ([F, T, T], [F, F, F]),
+    ]
+    for mode in ControllerMode:
+        a = FlightMemory.initial(3, params)
+        a.xi = torch.tensor([[0.1, -0.2, 0.3], [0.0, 0.1, -0.4], [0.2, 0.2, 0.2]])
+        b = FlightMemory(*(getattr(a, f).clone() for f in a.__dataclass_fields__))
+        history = []
+        for grasped, set_down in steps:
+            grasped, set_down = torch.tensor(grasped), torch.tensor(set_down)
+            a = compiled.payload_update(a, grasped, set_down, mass, mode)
+            b = update_payload_estimate(b, params, grasped, set_down, mass, mode)
+            history.append(a)
+            for name in a.__dataclass_fields__:
+                assert torch.equal(getattr(a, name), getattr(b, name)), (mode, name)
+        aware = mode is ControllerMode.PAYLOAD_AWARE
+        # after four steps the first and third envs carry their load (the second lost its grasp); the first is set
+        # down at the fifth: its vertical integral resets once
+        assert history[3].payload_active.tolist() == [aware, False, aware]
+        assert (float(history[4].xi[0, 2]) == 0.0) == aware and float(history[4].xi[2, 2]) == pytest.approx(0.2)
+        assert history[-1].grasp_steps.tolist() == [0, 2, 1]
+    assert compiled.kernels["payload"].backend == "compiled ahead of time", compiled.kernels["payload"].backend
 
 
 def test_torch_compiled_step_matches_the_eager_one():
