@@ -109,6 +109,11 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
 _size, _is_contiguous = torch.Tensor.size, torch.Tensor.is_contiguous
 
 
+def _contiguous(tensors: Sequence[torch.Tensor]) -> list[torch.Tensor]:
+    """The inputs as a package reads them (raw memory): a contiguous copy of any strided one."""
+    return list(tensors) if all(map(_is_contiguous, tensors)) else [t.contiguous() for t in tensors]
+
+
 def _owned(outputs: Sequence[torch.Tensor]) -> list[torch.Tensor]:
     """A package with stack-allocated intermediates returns the same output buffers at every call: copies, so that
     memory fed back (and anything a caller keeps) is not overwritten by the next call (about a microsecond each)."""
@@ -155,14 +160,9 @@ class Kernel:
         fast = self._fast
         if fast is not None and fast[2] == tuple(map(_size, tensors)):  # the very sizes of the last call's package
             self.backend = "compiled ahead of time"
-            inputs = list(tensors) if all(map(_is_contiguous, tensors)) else [t.contiguous() for t in tensors]
-            return _owned(fast[1](inputs))
-        shapes = self._shape_key(tensors)
-        if fast is not None and shapes == fast[0]:  # another size of a free dimension: the same package
-            self._fast = (shapes, fast[1], tuple(map(_size, tensors)))
-            self.backend = "compiled ahead of time"
-            return _owned(fast[1]([t if t.is_contiguous() else t.contiguous() for t in tensors]))
+            return _owned(fast[1](_contiguous(tensors)))
         if self.aot_ok:
+            shapes = self._shape_key(tensors)  # another size of a free dimension finds the same package
             run = self._aot.get(shapes)
             if run is None:
                 try:
@@ -175,7 +175,7 @@ class Kernel:
             if run is not None:
                 self._fast = (shapes, run, tuple(map(_size, tensors)))
                 self.backend = "compiled ahead of time"
-                return _owned(run([t if t.is_contiguous() else t.contiguous() for t in tensors]))
+                return _owned(run(_contiguous(tensors)))
         compiled = self._compiled_fn()
         if compiled is None:
             return self.fn(*tensors)

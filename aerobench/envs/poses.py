@@ -18,9 +18,14 @@ def raw_pose_of(body: Actor | Link) -> torch.Tensor:
     """`body.pose.raw_pose`, `(N, 7)` (position, wxyz); on physx_cpu without ManiSkill's list conversions."""
     if body.scene.gpu_sim_enabled or len(body._objs) != 1:
         return body.pose.raw_pose
-    obj = body._objs[0]
-    pose = obj.entity_pose if isinstance(body, Link) else obj.pose  # a link component, or an actor's entity
+    pose = _sapien_pose(body)
     return torch.from_numpy(np.concatenate([pose.p, pose.q]))[None]
+
+
+def _sapien_pose(body: Actor | Link):
+    """The SAPIEN pose of `body`'s one entity (physx_cpu)."""
+    obj = body._objs[0]
+    return obj.entity_pose if isinstance(body, Link) else obj.pose  # a link component, or an actor's entity
 
 
 def pose_of(body: Actor | Link) -> Pose:
@@ -34,6 +39,4 @@ def raw_quats_of(bodies: list[Actor | Link]) -> torch.Tensor:
     """The orientations (wxyz) of `bodies`, `(N, len(bodies), 4)`; on physx_cpu one array from the SAPIEN entities."""
     if any(b.scene.gpu_sim_enabled or len(b._objs) != 1 for b in bodies):
         return torch.stack([raw_pose_of(b)[:, 3:] for b in bodies], 1)
-    objs = [b._objs[0] for b in bodies]
-    poses = [obj.entity_pose if isinstance(b, Link) else obj.pose for b, obj in zip(bodies, objs)]
-    return torch.from_numpy(np.stack([pose.q for pose in poses]))[None]
+    return torch.from_numpy(np.stack([_sapien_pose(b).q for b in bodies]))[None]

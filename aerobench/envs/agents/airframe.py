@@ -295,9 +295,8 @@ class AerialAgent(BaseAgent):
         q, qd = self.joint_state()
         fingers, arm = self.finger_joints, self.arm_joints
         state = self.airframe_state() if state is None else state
-        if arm is None:
-            return {"state": proprio_state(state, q[:, fingers], qd[:, fingers])}
-        return {"state": proprio_state(state, q[:, fingers], qd[:, fingers], q[:, arm], qd[:, arm])}
+        arm_parts = () if arm is None else (q[:, arm], qd[:, arm])
+        return {"state": proprio_state(state, q[:, fingers], qd[:, fingers], *arm_parts)}
 
     def arm_qpos(self) -> torch.Tensor:
         """Arm joint positions `(N, 3)` (shoulder, elbow, wrist); empty `(N, 0)` on the gripper platform."""

@@ -198,7 +198,7 @@ class FusedPhysicsStep:
     def payload_update(self, memory: FlightMemory, is_grasped: torch.Tensor, is_set_down: torch.Tensor,
                        object_mass: torch.Tensor, mode: ControllerMode) -> FlightMemory:
         """`update_payload_estimate` of `memory` (once per control step); the payload-aware switches as one compiled
-        call (eager, they are about 25 small ops: 45 us a control step on a CPU)."""
+        call (eager, they are about 25 small ops: 64 us a control step on a CPU, docs/performance.md)."""
         if mode is not ControllerMode.PAYLOAD_AWARE:
             return update_payload_estimate(memory, self.params, is_grasped, is_set_down, object_mass, mode)
         m = memory
