@@ -109,9 +109,14 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
 _size, _is_contiguous = torch.Tensor.size, torch.Tensor.is_contiguous
 
 
+def all_contiguous(tensors: Sequence[torch.Tensor]) -> bool:
+    """Whether a package can read `tensors` as they are (it reads raw memory)."""
+    return all(map(_is_contiguous, tensors))
+
+
 def _contiguous(tensors: Sequence[torch.Tensor]) -> list[torch.Tensor]:
-    """The inputs as a package reads them (raw memory): a contiguous copy of any strided one."""
-    return list(tensors) if all(map(_is_contiguous, tensors)) else [t.contiguous() for t in tensors]
+    """The inputs as a package reads them: a contiguous copy of any strided one."""
+    return list(tensors) if all_contiguous(tensors) else [t.contiguous() for t in tensors]
 
 
 def _owned(outputs: Sequence[torch.Tensor]) -> list[torch.Tensor]:

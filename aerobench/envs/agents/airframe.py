@@ -196,10 +196,13 @@ class AerialAgent(BaseAgent):
         self.virtual_joint_indices = torch.tensor(
             [self.robot.active_joints_map[n].active_index[0] for n in VIRTUAL_JOINT_NAMES], device=self.device
         )
-        self.finger_joint_indices = [self.robot.active_joints_map[n].active_index[0] for n in FINGER_JOINT_NAMES]
-        # the fingers' and the arm's columns of the joint vectors, read every control step (a slice where they run)
-        self.finger_joints = joint_columns(self.finger_joint_indices, self.device)
-        self.arm_joints = joint_columns(self._arm_indices(), self.device) if self.arm_joint_names else None
+        # the fingers' and the arm's columns of the joint vectors, read every control step (a slice where they run;
+        # no arm: None)
+        def columns(names):
+            return joint_columns([self.robot.active_joints_map[n].active_index[0] for n in names], self.device)
+
+        self.finger_joints = columns(FINGER_JOINT_NAMES)
+        self.arm_joints = columns(self.arm_joint_names) if self.arm_joint_names else None
 
     # ----------------------------------------------------------------------------------------------------------------
     # Controllers and sensors
@@ -300,14 +303,13 @@ class AerialAgent(BaseAgent):
 
     def arm_qpos(self) -> torch.Tensor:
         """Arm joint positions `(N, 3)` (shoulder, elbow, wrist); empty `(N, 0)` on the gripper platform."""
-        return self.robot.get_qpos()[:, self._arm_indices()]
+        q = self.robot.get_qpos()
+        return q[:, self.arm_joints] if self.arm_joints is not None else q[:, :0]
 
     def arm_qvel(self) -> torch.Tensor:
         """Arm joint velocities `(N, 3)` (rad/s); empty `(N, 0)` on the gripper platform."""
-        return self.robot.get_qvel()[:, self._arm_indices()]
-
-    def _arm_indices(self) -> list[int]:
-        return [self.robot.active_joints_map[n].active_index[0] for n in self.arm_joint_names]
+        qd = self.robot.get_qvel()
+        return qd[:, self.arm_joints] if self.arm_joints is not None else qd[:, :0]
 
     def hover_qpos(self, position: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
         """Full qpos for a level airframe at `position` `(N, 3)` with heading `yaw` `(N,)`, working arm pose, open gripper."""
@@ -343,8 +345,7 @@ class AerialAgent(BaseAgent):
 
     def finger_opening(self) -> torch.Tensor:
         """Distance between the finger pads, m, `(N,)`."""
-        q = self.joint_state()[0]
-        return q[:, self.finger_joint_indices[0]] + q[:, self.finger_joint_indices[1]]
+        return self.joint_state()[0][:, self.finger_joints].sum(-1)
 
     def finger_contact_forces(self, obj: Actor) -> tuple[torch.Tensor, torch.Tensor]:
         """Contact force vectors `(N, 3)` of the left and right finger on `obj`."""

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import torch
 
-from ..kernels import Kernel, compile_requested
+from ..kernels import Kernel, all_contiguous, compile_requested
 from ..platforms import PlatformSpec
 from .arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
 from .flight import FlightMemory, FlightOutput, FlightParams, flight_laws
@@ -220,9 +220,8 @@ class FusedPhysicsStep:
             return lambda inputs: self.efforts(*inputs)
 
         def call(inputs: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
-            for t in inputs:
-                if not t.is_contiguous():  # the package reads raw memory: the wrapper makes a contiguous copy
-                    return self.efforts(*inputs)
+            if not all_contiguous(inputs):  # the package reads raw memory: the wrapper makes a contiguous copy
+                return self.efforts(*inputs)
             efforts, xi, yaw_des = run(inputs)
             return efforts, xi.clone(), yaw_des.clone()
 
