@@ -11,6 +11,7 @@ from aerobench.envs.geometry import (
     drone_proxy_points_body,
     is_pose_free,
     level_drone_points,
+    min_distance_to_boxes,
     pack_boxes,
     point_box_distance,
 )
@@ -39,3 +40,39 @@ def test_culled_start_check_is_the_brute_force_one(scene, platform):
             some_blocked += int((~brute).sum())
         assert boxes_near(pts.reshape(2, -1, 3), boxes, 0.05).shape[1] < boxes.shape[1]  # it does drop boxes
     assert some_free > 0 and some_blocked > 0  # both answers occur, so the equality means something
+
+
+def test_point_box_distance_is_the_signed_distance():
+    """Against the closest point of each box, found by clamping in the box frame (outside), and the nearest face
+    (inside), for points in, near and far from boxes of any yaw; padding rows read as far away."""
+    g = torch.Generator().manual_seed(3)
+    n, p, b = 2, 40, 9
+    boxes = torch.zeros(n, b, 8)
+    boxes[..., 0:3] = torch.rand(n, b, 3, generator=g) * 2 - 1
+    boxes[..., 3:6] = 0.05 + torch.rand(n, b, 3, generator=g) * 0.4
+    boxes[..., 6] = (torch.rand(n, b, generator=g) * 2 - 1) * math.pi
+    boxes[..., 7] = 1.0
+    boxes[1, -2:, 7] = 0.0  # the second env has two padding rows
+    points = torch.rand(n, p, 3, generator=g) * 3 - 1.5
+    points[:, :b] = boxes[..., 0:3] + 0.5 * boxes[..., 3:6] * (torch.rand(n, b, 3, generator=g) * 2 - 1)  # inside
+
+    got = point_box_distance(points, boxes).numpy()
+    pts, bx = points.numpy().astype(np.float64), boxes.numpy().astype(np.float64)
+    inside = 0
+    for i in range(n):
+        for j in range(b):
+            if bx[i, j, 7] < 0.5:
+                assert np.all(got[i, :, j] == 1e3)
+                continue
+            c, s = math.cos(bx[i, j, 6]), math.sin(bx[i, j, 6])
+            to_box = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # world -> box frame
+            local = (pts[i] - bx[i, j, :3]) @ to_box.T
+            half = bx[i, j, 3:6]
+            closest = np.clip(local, -half, half)
+            outside = np.linalg.norm(local - closest, axis=-1)
+            depth = (half - np.abs(local)).min(-1)  # to the nearest face, positive inside
+            expected = np.where(outside > 0, outside, -depth)
+            inside += int((outside == 0).sum())
+            np.testing.assert_allclose(got[i, :, j], expected, atol=2e-6)
+    assert inside >= n * b  # the inside branch is exercised
+    assert torch.equal(min_distance_to_boxes(points, boxes), point_box_distance(points, boxes).flatten(1).amin(1))
