@@ -6,10 +6,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+from mani_skill.agents.controllers import PDJointPosMimicController
 
 import aerobench.envs  # noqa: F401
 from aerobench.envs.agents import NonFiniteActionError
 from aerobench.envs.agents.airframe import VIRTUAL_LINK_NAMES
+from aerobench.envs.agents.finger_controller import FingerController
 from aerobench.envs.flight_test import articulated_mass_properties
 
 
@@ -70,3 +72,31 @@ def test_three_onboard_rgbd_cameras():
         assert cam["rgb"].shape == (1, 128, 128, 3) and cam["depth"].shape == (1, 128, 128, 1)
         assert cam["rgb"].float().std() > 1.0  # the room is visible, not a blank image
     env.close()
+
+
+def test_the_heading_is_taken_once_after_each_reset(env):
+    """A reset arms the heading sync: the first physics step takes the airframe's yaw as the held heading, and the
+    flags stay clear after it, until the next reset arms them again."""
+    base = env
+    bc = base.agent.body_controller
+    hover = torch.zeros(1, base.action_space.shape[-1])
+    for yaw in (0.7, -1.2):
+        env.reset(seed=0)
+        q = base.agent.robot.get_qpos().clone()
+        q[:, 3] = yaw  # root_yaw: a start at another heading
+        base.agent.robot.set_qpos(q)
+        assert bool(bc._needs_yaw_sync.all())
+        for _ in range(3):
+            env.step(hover)
+            assert not bool(bc._needs_yaw_sync.any())
+        assert float(bc.memory.yaw_des[0]) == pytest.approx(yaw, abs=1e-3)  # held there, not at the last episode's
+
+
+def test_the_body_controller_is_the_only_one_between_physics_steps(env):
+    """`AerialAgent.before_simulation_step` calls the body controller alone: every control mode's other controllers
+    must have nothing to do between physics steps."""
+    for mode, config in env.agent._controller_configs.items():
+        controllers = {k: v for k, v in config.items() if k != "balance_passive_force"}
+        assert set(controllers) == {"body", "gripper"}, mode
+        assert controllers["gripper"].controller_cls is FingerController, mode
+    assert FingerController.before_simulation_step is not PDJointPosMimicController.before_simulation_step

@@ -249,6 +249,11 @@ class AerialAgent(BaseAgent):
     def body_controller(self) -> AerialBodyController:
         return self.controller.controllers["body"]
 
+    def before_simulation_step(self):
+        # 240 Hz: only the body controller acts between physics steps (`FingerController.before_simulation_step` is
+        # empty), so it is called directly instead of through ManiSkill's loop over the mode's controllers
+        self.controller.controllers["body"].before_simulation_step()
+
     def set_action(self, action):
         action = common.to_tensor(action, device=self.device)
         batched = action if action.ndim == 2 else action[None]

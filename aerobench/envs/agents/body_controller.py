@@ -53,6 +53,9 @@ class AerialBodyController(BaseController):
         self.arm_target = torch.tensor(working, dtype=torch.float32, device=self.device).expand(n, len(working)).clone()
         self.contact_mode = torch.zeros(n, dtype=torch.bool, device=self.device)
         self._needs_yaw_sync = torch.ones(n, dtype=torch.bool, device=self.device)
+        # whether `_needs_yaw_sync` may hold a set flag (kept on the host: after the first physics step that consumes
+        # the flags they stay clear until a reset, and clearing them again at every 240 Hz step is a wasted op)
+        self._yaw_sync_pending = True
         # the fused step's StepResult and the joint state it read (last_output/last_state), kept while telemetry
         # records: otherwise the step returns only the efforts and the controller memory
         self.last_result = None
@@ -90,6 +93,7 @@ class AerialBodyController(BaseController):
         """Unloaded controller, zero integrators, working arm pose and no contact mode for the envs in `mask`."""
         self.memory.reset(mask, self.params)
         self._needs_yaw_sync |= mask
+        self._yaw_sync_pending = True
         self.contact_mode &= ~mask
         if self.arm is not None:
             working = torch.tensor(self.config.platform.arm.working_pose_rad, device=self.device)
@@ -137,7 +141,9 @@ class AerialBodyController(BaseController):
                 self._efforts_loop = (self.step_fn, self.step_fn.efforts_loop(tensors))
             else:
                 efforts, m.xi, m.yaw_des = loop[1](tensors)
-            self._needs_yaw_sync.zero_()
+            if self._yaw_sync_pending:
+                self._needs_yaw_sync.zero_()
+                self._yaw_sync_pending = False
             if cpu is not None:
                 cpu.set_qf(efforts.numpy()[0])
             else:
@@ -147,6 +153,7 @@ class AerialBodyController(BaseController):
             result = self.step_fn(q, qd, *tensors[2:])
             m.xi, m.yaw_des = result.xi, result.yaw_des
             self._needs_yaw_sync.zero_()
+            self._yaw_sync_pending = False
             if self._qf is None or self._qf.shape != q_all.shape:
                 self._qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
             self._qf[:, self._joints] = result.efforts

@@ -33,6 +33,11 @@ class FingerController(PDJointPosMimicController):
         super().reset()  # the reset envs' targets become their current joint positions: the next command applies
         self._applied = None
 
+    def before_simulation_step(self):
+        """Nothing between physics steps: the targets are absolute and not interpolated, and PhysX's drive holds them
+        (ManiSkill's own hook only counts physics steps for its interpolation). The airframe's agent calls the body
+        controller alone at 240 Hz for that reason."""
+
     def set_action(self, action: torch.Tensor):
         joints = self._cpu_joints
         if joints is None:
