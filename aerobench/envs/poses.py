@@ -2,9 +2,9 @@
 
 ManiSkill's batched getters (`Actor.pose`, `Link.pose`) serve every backend: on physx_cpu they build the `(1, 7)`
 tensor from a list of SAPIEN poses through generic conversions, 25-50 microseconds per read. The step context reads
-four poses every control step (tool centre point, both fingers, the object), so on physx_cpu they are read straight
-from the one SAPIEN entity (about 8 microseconds); on physx_cuda ManiSkill's getter is already one slice of the
-batched body data.
+four poses every control step (tool centre point, both fingers, the object) and the object's velocity, so on
+physx_cpu they are read straight from the one SAPIEN entity (about 8 microseconds); on physx_cuda ManiSkill's getter
+is already one slice of the batched body data.
 """
 
 from __future__ import annotations
@@ -33,6 +33,14 @@ def pose_of(body: Actor | Link) -> Pose:
     if body.scene.gpu_sim_enabled or len(body._objs) != 1:
         return body.pose
     return Pose(raw_pose=raw_pose_of(body))
+
+
+def linear_velocity_of(body: Actor) -> torch.Tensor:
+    """`body.linear_velocity`, `(N, 3)`; on physx_cpu the one SAPIEN body's own array (ManiSkill's getter builds it
+    through a list and a fresh tensor)."""
+    if body.scene.gpu_sim_enabled or len(body._bodies) != 1:
+        return body.linear_velocity
+    return torch.from_numpy(body._bodies[0].linear_velocity[None])
 
 
 def raw_quats_of(bodies: list[Actor | Link]) -> torch.Tensor:

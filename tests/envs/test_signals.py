@@ -77,6 +77,8 @@ def test_the_step_context_is_the_agents_and_maniskills_own_queries():
     torch.testing.assert_close(ctx.gripper_opening, agent.finger_opening())
     assert torch.equal(ctx.is_grasped, agent.is_grasping(base.target)) and bool(ctx.is_grasped.all())
     torch.testing.assert_close(ctx.object_pose.raw_pose, base.target.pose.raw_pose)
+    assert torch.equal(ctx.object_velocity, base.target.linear_velocity)
+    assert float(torch.linalg.norm(ctx.object_velocity)) > 0.0  # held in flight: a velocity to compare
     points = body_points_to_world(base.proxy_points, state.position, state.rotation)
     clearance = min_distance_to_boxes(points, base.obstacle_boxes()) - base.proxy_radius
     torch.testing.assert_close(info["min_obstacle_clearance"], clearance, rtol=1e-5, atol=1e-6)

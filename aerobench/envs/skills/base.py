@@ -37,7 +37,7 @@ from ..control.virtual_joints import AirframeState
 from ..geometry import drone_proxy_points_body, min_distance_to_boxes, pack_boxes, point_box_distance
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
-from ..poses import raw_pose_of, raw_quats_of
+from ..poses import linear_velocity_of, raw_pose_of, raw_quats_of
 from ..scenes import generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
@@ -337,7 +337,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             self.workspace_lo, self.workspace_hi, self.proxy_points, self.obstacle_boxes(),
         ]
         if self.target is not None:
-            tensors += [raw_pose_of(self.target), self.target.linear_velocity, self.target_grasp_point,
+            tensors += [raw_pose_of(self.target), linear_velocity_of(self.target), self.target_grasp_point,
                         self.target_grasps_rim, self.target_mass, self._object_start_p, self._object_start_q]
         return tensors, readout
 
@@ -356,7 +356,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             gripper_opening=s.gripper_opening,
             gripper_command=self._gripper_command.clone(),
             tcp=s.tcp,
-            tcp_pose=Pose.create_from_pq(p=s.tcp, q=grasp_link_pose[:, 3:]),  # the offset is a pure translation
+            tcp_pose=Pose(raw_pose=torch.cat([s.tcp, grasp_link_pose[:, 3:]], 1)),  # the offset: a pure translation
             opening_dirs=s.opening_dirs,
             signals=s,
         )
