@@ -119,6 +119,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--hover", action="store_true", help="hover instead of the expert acting")
     args = parser.parse_args()
+    if args.env == "AeroFly-v1" and not args.hover:
+        parser.error("AeroFly-v1 (the flight test) has no expert: pass --hover")
     torch.set_num_threads(1)
     total, parts = breakdown(args.env, args.steps, expert=not args.hover)
     who = "hovering" if args.hover else "expert acting"

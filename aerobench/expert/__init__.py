@@ -36,6 +36,9 @@ class ExpertController:
     """Acts for every env of a skill or sequential env; chains switch expert when the env's stage advances."""
 
     def __init__(self, env):
+        if not hasattr(env, "evaluators"):  # e.g. AeroFly-v1, the flight test: no task for an expert to solve
+            raise ValueError(f"the expert acts in the skill and task envs (AeroPick-v1, ...), not in {type(env).__name__}: "
+                             "drive it with velocity commands instead")
         self.env = env
         carrying, self.experts = False, []
         for k, evaluator in enumerate(env.evaluators):

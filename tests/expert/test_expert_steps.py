@@ -64,3 +64,11 @@ def test_the_compiled_place_step_is_the_eager_one(platform, seed, phase):
     with NoHostSync():
         _flat_place_step(*tensors, law=law)
     env.close()
+
+
+def test_the_expert_in_an_env_without_a_task_is_a_clear_error():
+    env = gym.make("AeroFly-v1", num_envs=1, scene="empty")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="the expert acts in the skill and task envs"):
+        make_policy("expert", env.unwrapped)
+    env.close()
