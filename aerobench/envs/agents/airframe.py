@@ -252,7 +252,7 @@ class AerialAgent(BaseAgent):
     def before_simulation_step(self):
         # 240 Hz: only the body controller acts between physics steps (`FingerController.before_simulation_step` is
         # empty), so it is called directly instead of through ManiSkill's loop over the mode's controllers
-        self.controller.controllers["body"].before_simulation_step()
+        self.body_controller.before_simulation_step()
 
     def set_action(self, action):
         action = common.to_tensor(action, device=self.device)
