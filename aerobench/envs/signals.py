@@ -18,11 +18,12 @@ from typing import NamedTuple
 
 import torch
 
-from .checks import SafetyLimits, flight_envelope_flags, is_pinched, nontarget_contact_force, support_force
+from .checks import SafetyLimits, consecutive, flight_envelope_flags, is_pinched, nontarget_contact_force, support_force
 from .control.so3 import quat_rotate, quat_wxyz_to_matrix
 from .control.virtual_joints import airframe_state_from_joints
 from .geometry import body_points_to_world, min_distance_to_boxes
 from .kernels import Kernel, shared_kernel
+from .observations import GRASP_CONFIRM_STEPS
 
 GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force
 HELD_FORCE_N = 0.1  # spec (chained evaluation, Open/Close release): "both fingers exceed 0.1 N"
@@ -74,6 +75,7 @@ class SharedSignals(NamedTuple):
     tcp_to_grasp_point: torch.Tensor | None = None
     object_displacement: torch.Tensor | None = None  # since the episode started (spec "Failure Analysis")
     object_turn: torch.Tensor | None = None  # ... the angle it turned
+    grasp_streak: torch.Tensor | None = None  # control steps grasped in a row (a held start: confirmed from step 0)
 
     def flat(self) -> tuple[torch.Tensor, ...]:
         return tuple(t for t in self if t is not None)
@@ -117,8 +119,9 @@ def shared_signals(
     left and right finger links' orientations; the contact forces as in `ContactReadout`; `finger_q` `(N, 2)` the
     finger joints; the workspace box `(N, 3)` twice; the airframe's proxy points `(P, 3)` (body frame); the scene's
     boxes `(N, B, 8)` (`geometry.pack_boxes`). With a target object, `target` is its pose `(N, 7)`, linear velocity
-    `(N, 3)`, planned grasp point in its frame `(N, 3)`, whether it is grasped at the rim `(N,)`, its mass `(N,)` and
-    its pose at the episode's start (position `(N, 3)`, wxyz `(N, 4)`).
+    `(N, 3)`, planned grasp point in its frame `(N, 3)`, whether it is grasped at the rim `(N,)`, its mass `(N,)`,
+    its pose at the episode's start (position `(N, 3)`, wxyz `(N, 4)`), and the grasp streak so far `(N,)`, whether
+    the episode started with the object in the jaws `(N,)` and the episode's control step `(N,)`.
     """
     state = airframe_state_from_joints(q_v, qd_v)
     position, rotation = q_v[:, :3], state.rotation
@@ -148,17 +151,21 @@ def shared_signals(
     )
     if not const.has_target:
         return SharedSignals(**shared)
-    pose, velocity, grasp_local, grasps_rim, mass, start_p, start_q = target
+    pose, velocity, grasp_local, grasps_rim, mass, start_p, start_q, grasp_streak, starts_held, step = target
     p, q = pose[:, :3], pose[:, 3:]
     R = quat_wxyz_to_matrix(q)
     grasp_point = planned_grasp_point(p, R, tcp, grasp_local, grasps_rim)
     forces = torch.linalg.norm(finger_on_target, dim=-1)
     lift = support_force(target_net, finger_on_target)[:, 2]
+    is_grasped = is_pinched(finger_on_target, opening_dirs, GRASP_FORCE_N)
+    # an episode that starts holding the object (an eligible held state) starts with its grasp confirmed
+    streak = consecutive(grasp_streak, is_grasped)
+    held_start = starts_held & (step < GRASP_CONFIRM_STEPS)
     return SharedSignals(
         **shared,
         object_rotation=R,
         grasp_point=grasp_point,
-        is_grasped=is_pinched(finger_on_target, opening_dirs, GRASP_FORCE_N),
+        is_grasped=is_grasped,
         is_grasp_held=(forces > HELD_FORCE_N).all(-1),
         is_supported=lift >= SUPPORTED_WEIGHT_FRACTION * mass * GRAVITY_MPS2,
         is_upright=R[:, 2, 2] >= UPRIGHT_COS,
@@ -167,6 +174,7 @@ def shared_signals(
         tcp_to_grasp_point=torch.linalg.norm(tcp - grasp_point, dim=-1),
         object_displacement=torch.linalg.norm(p - start_p, dim=-1),
         object_turn=2 * torch.acos(torch.clamp((q * start_q).sum(-1).abs(), max=1.0)),
+        grasp_streak=torch.where(held_start, torch.clamp(streak, min=GRASP_CONFIRM_STEPS), streak),
     )
 
 
@@ -176,8 +184,8 @@ def _flat_signals(*tensors: torch.Tensor, const: SignalConstants) -> tuple[torch
 
 BOXES_INPUT = 11  # `shared_signals`' input position of the scene's boxes, whose count varies with the layout
 _HERE = Path(__file__).resolve().parent
-_SOURCES = [_HERE / "signals.py", _HERE / "checks.py", _HERE / "geometry.py", _HERE / "control" / "so3.py",
-            _HERE / "control" / "virtual_joints.py"]
+_SOURCES = [_HERE / "signals.py", _HERE / "checks.py", _HERE / "geometry.py", _HERE / "observations.py",
+            _HERE / "control" / "so3.py", _HERE / "control" / "virtual_joints.py"]
 
 
 def signals_kernel(const: SignalConstants, device: torch.device | str, compile: bool | None = None) -> Kernel:

@@ -8,6 +8,7 @@ import torch
 import aerobench.envs  # noqa: F401
 from aerobench.envs.geometry import body_points_to_world, min_distance_to_boxes
 from aerobench.envs.kernels import Kernel
+from aerobench.envs.observations import GRASP_CONFIRM_STEPS
 from aerobench.envs.signals import BOXES_INPUT, SharedSignals, signals_kernel
 from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
@@ -83,4 +84,31 @@ def test_the_step_context_is_the_agents_and_maniskills_own_queries():
     clearance = min_distance_to_boxes(points, base.obstacle_boxes()) - base.proxy_radius
     torch.testing.assert_close(info["min_obstacle_clearance"], clearance, rtol=1e-5, atol=1e-6)
     assert float(info["object_displacement"][0]) > 0.02  # lifted off its support
+    env.close()
+
+
+def test_the_grasp_streak_counts_grasped_steps_and_confirms_a_held_start():
+    """The streak grows by one per grasped step and restarts at a step without the grasp; an episode that starts
+    with the object in the jaws has it confirmed (GRASP_CONFIRM_STEPS) over its first steps."""
+    env = _held_step()
+    base = env.unwrapped
+    tensors, _ = base.signal_inputs()
+    fn = base._signals_kernel.fn
+    streak_at, held_at, step_at = len(tensors) - 3, len(tensors) - 2, len(tensors) - 1
+
+    def streak(value: int, held: bool, step: int, grasped: bool = True) -> int:
+        inputs = list(tensors)
+        inputs[streak_at] = torch.tensor([value])
+        inputs[held_at] = torch.tensor([held])
+        inputs[step_at] = torch.tensor([step])
+        if not grasped:
+            inputs[5] = torch.zeros_like(inputs[5])  # no force from the object on the fingers
+        return int(SharedSignals.from_flat(fn(*inputs)).grasp_streak[0])
+
+    assert streak(3, held=False, step=40) == 4
+    assert streak(3, held=False, step=40, grasped=False) == 0
+    assert streak(0, held=True, step=0) == GRASP_CONFIRM_STEPS  # a held start: confirmed at once
+    assert streak(0, held=True, step=GRASP_CONFIRM_STEPS) == 1  # ... only over its first steps
+    assert streak(0, held=True, step=0, grasped=False) == GRASP_CONFIRM_STEPS
+    assert int(base._grasp_streak[0]) >= 1  # the env keeps the signal: the expert holds the object here
     env.close()

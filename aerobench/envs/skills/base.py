@@ -30,7 +30,7 @@ from mani_skill.utils.structs import Actor, Pose
 from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
 from ..assets import YCB_IDS, parse_real_assets, replicacad_dir, ycb_model_dir
 from ..base_env import AerialEnv
-from ..checks import FailureCause, SafetyLimits, consecutive, latch_failure
+from ..checks import FailureCause, SafetyLimits, latch_failure
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
 from ..control.virtual_joints import AirframeState
@@ -338,7 +338,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         ]
         if self.target is not None:
             tensors += [raw_pose_of(self.target), linear_velocity_of(self.target), self.target_grasp_point,
-                        self.target_grasps_rim, self.target_mass, self._object_start_p, self._object_start_q]
+                        self.target_grasps_rim, self.target_mass, self._object_start_p, self._object_start_q,
+                        self._grasp_streak, self.starts_held, self._episode_step]
         return tensors, readout
 
     def step_context(self) -> StepContext:
@@ -375,12 +376,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         if getattr(self, "_signals_step", -1) == step_id and hasattr(self, "_signals"):
             return self._signals
         ctx = self._ctx = self.step_context()
-        if ctx.is_grasped is not None:
-            # an episode that starts holding the object (an eligible held state) starts with its grasp confirmed
-            held_start = self.starts_held & (ctx.step < GRASP_CONFIRM_STEPS)
-            streak = consecutive(self._grasp_streak, ctx.is_grasped)
-            self._grasp_streak = torch.where(held_start, torch.clamp(streak, min=GRASP_CONFIRM_STEPS), streak)
         s = ctx.signals
+        if s.grasp_streak is not None:  # the grasp streak is one of the shared signals (held starts confirmed)
+            self._grasp_streak = s.grasp_streak
         envelope = {flag: getattr(s, flag) for flag in ENVELOPE_FLAGS}
         active = self.active_evaluator_index()
         info: dict[str, torch.Tensor] = {
