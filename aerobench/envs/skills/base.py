@@ -54,7 +54,6 @@ RENDER_EYE_CANDIDATES = 12
 class StepContext:
     """Everything evaluators read at one control step, computed once by the env. `(N, ...)` tensors."""
 
-    step: torch.Tensor  # (N,) control steps since the episode started
     state: AirframeState
     readout: ContactReadout
     speed: torch.Tensor
@@ -347,7 +346,6 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         q_v, qd_v, grasp_link_pose = tensors[:3]
         s = SharedSignals.from_flat(self._signals_kernel(*tensors))
         ctx = StepContext(
-            step=self._episode_step.clone(),
             state=AirframeState(q_v[:, :3], qd_v[:, :3], s.rotation, s.angular_velocity_body),
             readout=readout,
             speed=s.speed,
