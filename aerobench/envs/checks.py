@@ -11,8 +11,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import partial
+from pathlib import Path
 
 import torch
+
+from .kernels import Kernel, shared_kernel
 
 
 class FailureCause(IntEnum):
@@ -141,6 +145,23 @@ def latch_failure(current: torch.Tensor, flags: list[tuple[FailureCause, torch.T
     for cause, flag in reversed(flags):
         new = torch.where(flag, torch.full_like(new, int(cause)), new)
     return torch.where(current != 0, current, new)
+
+
+def verdict(current: torch.Tensor, success: torch.Tensor, *flags: torch.Tensor,
+            causes: tuple[int, ...]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """A control step's outcome `(N,)`: the latched failure cause (`latch_failure` of `flags`, flagging `causes` in
+    that order), whether the env failed, its success (`success` where it has not failed) and ManiSkill's sparse
+    reward of them (1 on success, -1 on failure, else 0)."""
+    cause = latch_failure(current, list(zip(causes, flags)))
+    fail = cause != 0
+    success = success & ~fail
+    return cause, fail, success, success.float() - fail.float()
+
+
+def verdict_kernel(causes: tuple[int, ...], device: torch.device | str, compile: bool | None = None) -> Kernel:
+    """The process's one `verdict` kernel for the flagged `causes` (in priority order) on `device`: about twenty
+    small ops as one call on a CPU."""
+    return shared_kernel(partial(verdict, causes=causes), "verdict", causes, [Path(__file__).resolve()], device, compile)
 
 
 def consecutive(count: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:

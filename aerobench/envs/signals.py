@@ -23,7 +23,7 @@ from .control.so3 import quat_rotate, quat_wxyz_to_matrix
 from .control.virtual_joints import airframe_state_from_joints
 from .geometry import body_points_to_world, min_distance_to_boxes
 from .kernels import Kernel, shared_kernel
-from .observations import GRASP_CONFIRM_STEPS
+from .observations import GRASP_CONFIRM_STEPS, proprio_state
 
 GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force
 HELD_FORCE_N = 0.1  # spec (chained evaluation, Open/Close release): "both fingers exceed 0.1 N"
@@ -42,11 +42,16 @@ class SignalConstants(NamedTuple):
     proxy_radius: float  # subtracted from the proxy points' distance (`geometry.drone_proxy_points_body`)
     safety: SafetyLimits
     has_target: bool
+    virtual_joints: tuple[int, ...]  # the six virtual joints' columns of the articulation's joint vectors
+    finger_joints: tuple[int, int]  # the left and right finger joints' columns
+    arm_joints: tuple[int, ...]  # the arm's joint columns (none on the gripper platform)
 
 
 class SharedSignals(NamedTuple):
     """`(N, ...)` tensors; the object's fields are None without a target object."""
 
+    position: torch.Tensor  # (N, 3) airframe centre
+    velocity: torch.Tensor  # (N, 3) its linear velocity
     rotation: torch.Tensor  # airframe, body to world
     angular_velocity_body: torch.Tensor
     tcp: torch.Tensor  # (N, 3) tool centre point
@@ -64,6 +69,7 @@ class SharedSignals(NamedTuple):
     fail_low: torch.Tensor
     fail_high: torch.Tensor
     fail_workspace: torch.Tensor
+    proprio: torch.Tensor  # the policy-facing proprioceptive state (`observations.proprio_state`)
     object_rotation: torch.Tensor | None = None  # (N, 3, 3)
     grasp_point: torch.Tensor | None = None  # (N, 3) world position of the object's planned grasp point
     is_grasped: torch.Tensor | None = None  # both fingers >= GRASP_FORCE_N along their opening directions
@@ -97,15 +103,21 @@ def planned_grasp_point(position: torch.Tensor, R: torch.Tensor, tcp: torch.Tens
     return torch.where(grasps_rim[:, None], position + (R @ rim[..., None])[..., 0], point)
 
 
+def _columns(x: torch.Tensor, columns: tuple[int, ...]) -> torch.Tensor:
+    """`x[:, columns]`: a slice where the columns are one ascending run."""
+    if columns and list(columns) == list(range(columns[0], columns[-1] + 1)):
+        return x[:, columns[0] : columns[-1] + 1]
+    return x[:, list(columns)]
+
+
 def shared_signals(
-    q_v: torch.Tensor,
-    qd_v: torch.Tensor,
+    q: torch.Tensor,
+    qd: torch.Tensor,
     grasp_link_pose: torch.Tensor,
     finger_quats: torch.Tensor,
     link_forces: torch.Tensor,
     finger_on_target: torch.Tensor,
     target_net: torch.Tensor,
-    finger_q: torch.Tensor,
     workspace_lo: torch.Tensor,
     workspace_hi: torch.Tensor,
     proxy_points: torch.Tensor,
@@ -115,16 +127,19 @@ def shared_signals(
 ) -> SharedSignals:
     """The step's shared signals from its reads.
 
-    `q_v, qd_v` `(N, 6)` the virtual joints; `grasp_link_pose` `(N, 7)` (p, wxyz); `finger_quats` `(N, 2, 4)` the
-    left and right finger links' orientations; the contact forces as in `ContactReadout`; `finger_q` `(N, 2)` the
-    finger joints; the workspace box `(N, 3)` twice; the airframe's proxy points `(P, 3)` (body frame); the scene's
+    `q, qd` `(N, J)` the articulation's joint positions and velocities; `grasp_link_pose` `(N, 7)` (p, wxyz);
+    `finger_quats` `(N, 2, 4)` the left and right finger links' orientations; the contact forces as in
+    `ContactReadout`; the workspace box `(N, 3)` twice; the airframe's proxy points `(P, 3)` (body frame); the scene's
     boxes `(N, B, 8)` (`geometry.pack_boxes`). With a target object, `target` is its pose `(N, 7)`, linear velocity
     `(N, 3)`, planned grasp point in its frame `(N, 3)`, whether it is grasped at the rim `(N,)`, its mass `(N,)`,
     its pose at the episode's start (position `(N, 3)`, wxyz `(N, 4)`), and the grasp streak so far `(N,)`, whether
     the episode started with the object in the jaws `(N,)` and the episode's control step `(N,)`.
     """
+    q_v, qd_v = _columns(q, const.virtual_joints), _columns(qd, const.virtual_joints)
+    finger_q, finger_qd = _columns(q, const.finger_joints), _columns(qd, const.finger_joints)
+    arm = (_columns(q, const.arm_joints), _columns(qd, const.arm_joints)) if const.arm_joints else ()
     state = airframe_state_from_joints(q_v, qd_v)
-    position, rotation = q_v[:, :3], state.rotation
+    position, rotation = state.position, state.rotation
     link_p, link_q = grasp_link_pose[:, :3], grasp_link_pose[:, 3:]
     # the offset is a pure translation: rotate it, keep the link's orientation
     tcp = link_p + quat_rotate(link_q, torch.tensor(const.tcp_offset, dtype=link_p.dtype, device=link_p.device))
@@ -134,6 +149,8 @@ def shared_signals(
     envelope = flight_envelope_flags(position, rotation, workspace_lo, workspace_hi, const.safety)
     points = body_points_to_world(proxy_points, position, rotation)
     shared = dict(
+        position=position,
+        velocity=state.velocity,
         rotation=rotation,
         angular_velocity_body=state.angular_velocity_body,
         tcp=tcp,
@@ -148,6 +165,7 @@ def shared_signals(
         tilt_rate=torch.linalg.norm(state.angular_velocity_body[:, :2], dim=-1),
         clearance=min_distance_to_boxes(points, boxes) - const.proxy_radius,
         **envelope,
+        proprio=proprio_state(state, finger_q, finger_qd, *arm),
     )
     if not const.has_target:
         return SharedSignals(**shared)
@@ -182,7 +200,8 @@ def _flat_signals(*tensors: torch.Tensor, const: SignalConstants) -> tuple[torch
     return shared_signals(*tensors, const=const).flat()
 
 
-BOXES_INPUT = 11  # `shared_signals`' input position of the scene's boxes, whose count varies with the layout
+BOXES_INPUT = 10  # `shared_signals`' input position of the scene's boxes, whose count varies with the layout
+TARGET_INPUT = BOXES_INPUT + 1  # ... and of the target object's pose (its velocity next)
 _HERE = Path(__file__).resolve().parent
 _SOURCES = [_HERE / "signals.py", _HERE / "checks.py", _HERE / "geometry.py", _HERE / "observations.py",
             _HERE / "control" / "so3.py", _HERE / "control" / "virtual_joints.py"]

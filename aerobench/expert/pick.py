@@ -102,6 +102,7 @@ class PickExpert(SkillExpert):
         self.after_stage = after_stage
         self.route = RouteFollower(self.n, self.device)
         self.routed = after_stage  # whether any env may follow a route (the first-stage pick: only a blocked start)
+        self._kernels: dict[bool, Kernel] = {}  # the compiled step by `routed`
         self.back_yaw = torch.zeros(self.n, device=self.device)  # the heading kept while backing off
         self.turned = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # turned to the grasp heading after it
         self.align_tolerance = (env.grasp_side_room - 0.002).clamp(0.002, ALIGN_TOLERANCE_M)
@@ -208,9 +209,14 @@ class PickExpert(SkillExpert):
                            self.forearm_droops(self.evaluator))
 
     def _kernel(self) -> Kernel:
-        """The compiled `pick_step` of this expert's law (whether it follows routes is part of it)."""
-        law = PickLaw(self.has_arm, self.routed, self.platform.arm, float(self.max_yaw_rate), float(self.yaw_gain))
-        return shared_kernel(partial(_flat_pick_step, law=law), "pick_expert", law, _SOURCES, self.device)
+        """The compiled `pick_step` of this expert's law (whether it follows routes is part of it), found once per
+        law: the lookup hashes the law's arm spec, a cost at every control step otherwise."""
+        kernel = self._kernels.get(self.routed)
+        if kernel is None:
+            law = PickLaw(self.has_arm, self.routed, self.platform.arm, float(self.max_yaw_rate), float(self.yaw_gain))
+            kernel = self._kernels[self.routed] = shared_kernel(partial(_flat_pick_step, law=law), "pick_expert", law,
+                                                                _SOURCES, self.device)
+        return kernel
 
     def step_inputs(self) -> list[torch.Tensor]:
         """This control step's tensors of `pick_step` (the env's step context and signals, the expert's memory, the

@@ -71,6 +71,7 @@ class PlaceExpert(SkillExpert):
         self.stall_steps = torch.zeros(self.n, dtype=torch.long, device=self.device)
         self.route = RouteFollower(self.n, self.device)
         self.planned = torch.ones(self.n, dtype=torch.bool, device=self.device)
+        self._step_kernel: Kernel | None = None  # the compiled `place_step`, found at the first step
         # The arm platform places in the pose it carried the object in (`carry_arm_pose`): unfolding to the working
         # pose over a drawer swept the forearm into it.
         self.arm_pose = self.arm_rest.expand(self.n, 3).clone() if self.has_arm else None
@@ -111,9 +112,12 @@ class PlaceExpert(SkillExpert):
             self.route.set(i, route if route is not None else [airframe_goal[i].cpu().numpy()])
 
     def _kernel(self) -> Kernel:
-        """The compiled `place_step` of this expert's law."""
-        law = PlaceLaw(self.has_arm, self.pick is not None, float(self.max_yaw_rate), float(self.yaw_gain))
-        return shared_kernel(partial(_flat_place_step, law=law), "place_expert", law, _SOURCES, self.device)
+        """The compiled `place_step` of this expert's law (fixed for its life: found once)."""
+        if self._step_kernel is None:
+            law = PlaceLaw(self.has_arm, self.pick is not None, float(self.max_yaw_rate), float(self.yaw_gain))
+            self._step_kernel = shared_kernel(partial(_flat_place_step, law=law), "place_expert", law, _SOURCES,
+                                              self.device)
+        return self._step_kernel
 
     def step_inputs(self) -> list[torch.Tensor]:
         """This control step's tensors of `place_step` (the env's step context and signals, the expert's memory, the

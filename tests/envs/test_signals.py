@@ -84,6 +84,28 @@ def test_the_step_context_is_the_agents_and_maniskills_own_queries():
     clearance = min_distance_to_boxes(points, base.obstacle_boxes()) - base.proxy_radius
     torch.testing.assert_close(info["min_obstacle_clearance"], clearance, rtol=1e-5, atol=1e-6)
     assert float(info["object_displacement"][0]) > 0.02  # lifted off its support
+    # the observation's proprioceptive state is the agent's own, computed with the shared signals
+    torch.testing.assert_close(base._get_obs_agent()["state"], agent.get_proprioception()["state"])
+    env.close()
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_the_proprioceptive_state_is_the_agents_on_either_platform(platform):
+    """The shared signals' proprioceptive state (the observation's `agent/state`) is `get_proprioception`'s, the arm's
+    joints included, while the joints move."""
+    env = gym.make("AeroPick-v1", num_envs=1, obs_mode="state_dict", platform=platform)
+    base = env.unwrapped
+    obs, _ = env.reset(seed=2)
+    action = torch.zeros(1, base.platform.action_dim)
+    action[:, 0], action[:, 2], action[:, -1] = 0.3, 0.2, -1.0  # fly and open the fingers
+    if platform == "arm":
+        action[:, 4:7] = 0.5  # move the arm
+    for _ in range(8):
+        obs, *_ = env.step(action)
+        expected = base.agent.get_proprioception()["state"]
+        assert expected.shape[-1] == (25 if platform == "arm" else 19)
+        torch.testing.assert_close(obs["agent"]["state"], expected)
+    assert float(expected[0, 9:12].abs().max()) > 0.0  # ... a state that moves (its velocity)
     env.close()
 
 

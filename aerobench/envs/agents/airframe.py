@@ -193,16 +193,17 @@ class AerialAgent(BaseAgent):
         self.airframe_link = self.robot.links_map["airframe"]
         self.grasp_link = self.robot.links_map[self.grasp_link_name]
         self.finger_links = [self.robot.links_map[n] for n in FINGER_JOINT_NAMES]
-        self.virtual_joint_indices = torch.tensor(
-            [self.robot.active_joints_map[n].active_index[0] for n in VIRTUAL_JOINT_NAMES], device=self.device
-        )
-        # the fingers' and the arm's columns of the joint vectors, read every control step (a slice where they run;
-        # no arm: None)
-        def columns(names):
-            return joint_columns([self.robot.active_joints_map[n].active_index[0] for n in names], self.device)
+        def indices(names) -> tuple[int, ...]:
+            return tuple(int(self.robot.active_joints_map[n].active_index[0]) for n in names)
 
-        self.finger_joints = columns(FINGER_JOINT_NAMES)
-        self.arm_joints = columns(self.arm_joint_names) if self.arm_joint_names else None
+        # the virtual joints', the fingers' and the arm's columns of the joint vectors, as indices (e.g. the shared
+        # signals' constants) ...
+        self.joint_indices = {"virtual": indices(VIRTUAL_JOINT_NAMES), "fingers": indices(FINGER_JOINT_NAMES),
+                              "arm": indices(self.arm_joint_names) if self.arm_joint_names else ()}
+        self.virtual_joint_indices = torch.tensor(self.joint_indices["virtual"], device=self.device)
+        # ... and as the columns read every control step (a slice where they run; no arm: None)
+        self.finger_joints = joint_columns(self.joint_indices["fingers"], self.device)
+        self.arm_joints = joint_columns(self.joint_indices["arm"], self.device) if self.arm_joint_names else None
 
     # ----------------------------------------------------------------------------------------------------------------
     # Controllers and sensors

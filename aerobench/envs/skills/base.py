@@ -30,11 +30,12 @@ from mani_skill.utils.structs import Actor, Pose
 from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
 from ..assets import YCB_IDS, parse_real_assets, replicacad_dir, ycb_model_dir
 from ..base_env import AerialEnv
-from ..checks import FailureCause, SafetyLimits, latch_failure
+from ..checks import FailureCause, SafetyLimits, verdict_kernel
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
 from ..control.virtual_joints import AirframeState
 from ..geometry import drone_proxy_points_body, min_distance_to_boxes, pack_boxes, point_box_distance
+from ..kernels import Kernel
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
 from ..poses import linear_velocity_of, raw_pose_of, raw_quats_of
@@ -42,7 +43,7 @@ from ..scenes import generate_layout
 from ..scenes.build import BuiltScene, build_layouts, light_layouts, place_fixtures
 from ..scenes.layout import SceneLayout, Support
 from ..scenes.room_routes import RoomRoutes
-from ..signals import ENVELOPE_FLAGS, SharedSignals, SignalConstants, signals_kernel
+from ..signals import ENVELOPE_FLAGS, TARGET_INPUT, SharedSignals, SignalConstants, signals_kernel
 from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
 from .evaluator import SkillEvaluator
 from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
@@ -251,9 +252,11 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         const = SignalConstants(
             tcp_offset=self.agent.tcp_offset, finger_idx=tuple(names.index(n) for n in FINGER_JOINT_NAMES),
             airframe_idx=names.index("airframe"), proxy_radius=float(self.proxy_radius), safety=self.safety,
-            has_target=self.target is not None,
+            has_target=self.target is not None, virtual_joints=self.agent.joint_indices["virtual"],
+            finger_joints=self.agent.joint_indices["fingers"], arm_joints=self.agent.joint_indices["arm"],
         )
         self._signals_kernel = signals_kernel(const, self.device)  # one per process and kind of env: compiled once
+        self._verdicts: dict[tuple[int, ...], Kernel] = {}  # `checks.verdict` kernels by the causes flagged
 
     def _handle_links(self) -> list:
         """Fixture links whose handles the fingers may pinch (Open/Close)."""
@@ -328,12 +331,10 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         the contact readout among them."""
         agent = self.agent
         q, qd = agent.joint_state()
-        q_v, qd_v = agent.virtual_joints(q, qd)
         readout = self.contacts.read()
         tensors = [
-            q_v, qd_v, raw_pose_of(agent.grasp_link), raw_quats_of(agent.finger_links),
-            readout.link_forces, readout.finger_on_target, readout.target_net, q[:, agent.finger_joints],
-            self.workspace_lo, self.workspace_hi, self.proxy_points, self.obstacle_boxes(),
+            q, qd, raw_pose_of(agent.grasp_link), raw_quats_of(agent.finger_links),
+            readout.link_forces, readout.finger_on_target, readout.target_net, self.workspace_lo, self.workspace_hi, self.proxy_points, self.obstacle_boxes(),
         ]
         if self.target is not None:
             tensors += [raw_pose_of(self.target), linear_velocity_of(self.target), self.target_grasp_point,
@@ -343,10 +344,10 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def step_context(self) -> StepContext:
         tensors, readout = self.signal_inputs()
-        q_v, qd_v, grasp_link_pose = tensors[:3]
+        grasp_link_pose = tensors[2]
         s = SharedSignals.from_flat(self._signals_kernel(*tensors))
         ctx = StepContext(
-            state=AirframeState(q_v[:, :3], qd_v[:, :3], s.rotation, s.angular_velocity_body),
+            state=AirframeState(s.position, s.velocity, s.rotation, s.angular_velocity_body),
             readout=readout,
             speed=s.speed,
             angular_speed=s.angular_speed,
@@ -360,7 +361,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             signals=s,
         )
         if self.target is not None:
-            object_pose, ctx.object_velocity = tensors[12:14]
+            object_pose, ctx.object_velocity = tensors[TARGET_INPUT : TARGET_INPUT + 2]
             ctx.object_pose, ctx.object_rotation = Pose(raw_pose=object_pose), s.object_rotation
             ctx.object_bottom_z = object_pose[:, 2]
             ctx.grasp_point, ctx.is_grasped, ctx.is_grasp_held = s.grasp_point, s.is_grasped, s.is_grasp_held
@@ -412,34 +413,47 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
                 object_displacement=s.object_displacement,
                 object_rotation=s.object_turn,
             )
-        success = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
+        successes: list[torch.Tensor] = []
         flags: list[tuple[FailureCause, torch.Tensor]] = []
         for evaluator, mine in self.evaluator_masks(active):
             signals, skill_success, skill_flags = evaluator.update(ctx, mine)
             if mine is None:  # the only evaluator: active in every env
                 info.update(signals)
-                success |= skill_success
+                successes.append(skill_success)
                 flags += skill_flags
                 continue
             for key, value in signals.items():
                 # an evaluator's own signals read as False / 0 in envs where another subtask is active
                 info[key] = torch.where(mine, value, info[key] if key in info else torch.zeros_like(value))
-            success |= mine & skill_success
+            successes.append(mine & skill_success)
             flags += [(cause, mine & flag) for cause, flag in skill_flags]
+        success = successes[0] if len(successes) == 1 else torch.stack(successes).any(0)
         flags += [
             (FailureCause.TILT, envelope["fail_tilt"]),
             (FailureCause.LOW, envelope["fail_low"]),
             (FailureCause.HIGH, envelope["fail_high"]),
             (FailureCause.WORKSPACE, envelope["fail_workspace"]),
         ]
-        self._fail_cause = latch_failure(self._fail_cause, flags)
-        fail = self._fail_cause != 0
+        # the first failure latched, and success where none (`checks.verdict`: one compiled call on a CPU)
+        causes = tuple(int(cause) for cause, _ in flags)
+        kernel = self._verdicts.get(causes)
+        if kernel is None:
+            kernel = self._verdicts[causes] = verdict_kernel(causes, self.device)
+        self._fail_cause, info["fail"], info["success"], reward = kernel(
+            self._fail_cause, self._overall_success(success), *[flag for _, flag in flags])
         info["fail_cause"] = self._fail_cause.clone()
-        info["fail"] = fail
-        info["success"] = self._overall_success(success) & ~fail
         info["is_success"] = info["success"]
+        self._sparse_reward = (info["success"], reward)
         self._signals, self._signals_step = info, step_id
         return info
+
+    def compute_sparse_reward(self, obs, action, info: dict) -> torch.Tensor:
+        """ManiSkill's sparse reward (1 on success, -1 on failure, else 0); for this step's own signals, as the step's
+        verdict computed it with them."""
+        cached = getattr(self, "_sparse_reward", None)
+        if cached is not None and info.get("success") is cached[0]:
+            return cached[1]
+        return super().compute_sparse_reward(obs, action, info)
 
     def _overall_success(self, active_success: torch.Tensor) -> torch.Tensor:
         return active_success
@@ -472,7 +486,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             self.agent.body_controller.set_contact_mode(self.evaluate()["is_handle_pinched"])
 
     def _get_obs_agent(self):
-        return self.agent.get_proprioception(self.current_step_context().state)
+        # the agent's `get_proprioception`, computed with the step's shared signals
+        return {"state": self.current_step_context().signals.proprio}
 
     def _get_obs_extra(self, info: dict):
         extra = {}

@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import math
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
 
 import torch
 from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs.pose import Pose
 
-from ..checks import FailureCause, consecutive
+from ..checks import FailureCause, SafetyLimits, consecutive
 from ..control.arm import arm_point_positions_body
 from ..control.so3 import quat_wxyz_to_matrix
 from ..geometry import level_airframe_room
+from ..kernels import Kernel, shared_kernel
 from ..observations import wrap_to_period
 from ..scenes import articulated
 from ..tasks import instruction
@@ -106,6 +110,8 @@ class PickEvaluator(SkillEvaluator):
         self.heading = self.zeros()  # the grasp heading planned when the skill starts
         self.inward = self.zeros()  # enclosed supports: the heading through the fixture's front
         self.enclosed = self.zeros(torch.bool)
+        self._update: Kernel | None = None  # the compiled `pick_update`, made at the first update
+        self._every = torch.ones(self.n, dtype=torch.bool, device=self.device)  # `mine` in a single-skill env
 
     def sample(self, env_idx: torch.Tensor) -> torch.Tensor:
         """Put the target upright at a random spot of a random source support; `(M,)` whether one existed."""
@@ -220,17 +226,14 @@ class PickEvaluator(SkillEvaluator):
         return self.rest_z[env_idx] + self.env.target_height[env_idx] + START_ABOVE_OBJECT_M
 
     def update(self, ctx, mine):
-        lift = ctx.object_bottom_z - self.rest_z
-        lifted = lift >= PICK_LIFT_M
-        self.hold_streak = self.keep(mine, consecutive(self.hold_streak, ctx.is_grasped & lifted), self.hold_streak)
-        success = self.hold_streak >= PICK_HOLD_STEPS
-        limits = self.env.safety
-        flags = [
-            (FailureCause.COLLISION, ctx.nontarget_force > limits.collision_force_n),
-            (FailureCause.OBJECT_DROP, ctx.object_bottom_z < self.rest_z - limits.drop_margin_m),
-        ]
-        signals = {"lift_height": lift, "is_lifted": lifted, "pick_hold_steps": self.hold_streak.clone()}
-        return signals, success, flags
+        if self._update is None:
+            self._update = pick_update_kernel(self.env.safety, self.device)
+        out = PickUpdate(*self._update(ctx.object_bottom_z, self.rest_z, ctx.is_grasped, ctx.nontarget_force,
+                                       self._every if mine is None else mine, self.hold_streak))
+        self.hold_streak = out.hold_streak
+        flags = [(FailureCause.COLLISION, out.fail_collision), (FailureCause.OBJECT_DROP, out.fail_drop)]
+        signals = {"lift_height": out.lift, "is_lifted": out.lifted, "pick_hold_steps": self.hold_streak.clone()}
+        return signals, out.success, flags
 
     def instruction(self, env):
         support = self.env.support_of(env, int(self.support_index[env]))
@@ -238,6 +241,46 @@ class PickEvaluator(SkillEvaluator):
 
     def privileged_obs(self):
         return {"pick_rest_height": self.rest_z[:, None]}
+
+
+class PickUpdate(NamedTuple):
+    """The pick evaluator's tracker after one control step, its signals, success and failure flags `(N,)`."""
+
+    hold_streak: torch.Tensor
+    lift: torch.Tensor
+    lifted: torch.Tensor
+    success: torch.Tensor
+    fail_collision: torch.Tensor
+    fail_drop: torch.Tensor
+
+
+def pick_update(object_bottom_z, rest_z, is_grasped, nontarget_force, mine, hold_streak, *,
+                limits: SafetyLimits) -> PickUpdate:
+    """One control step of the pick evaluator as a pure function of tensors (`(N,)`, no branch on a tensor value):
+    the object's bottom height and its resting height, the grasp check, the largest non-target contact force, the
+    envs where the pick is active (`mine`) and the hold streak, which advances only there."""
+    lift = object_bottom_z - rest_z
+    lifted = lift >= PICK_LIFT_M
+    hold_streak = torch.where(mine, consecutive(hold_streak, is_grasped & lifted), hold_streak)
+    return PickUpdate(
+        hold_streak, lift, lifted,
+        success=hold_streak >= PICK_HOLD_STEPS,
+        fail_collision=nontarget_force > limits.collision_force_n,
+        fail_drop=object_bottom_z < rest_z - limits.drop_margin_m,
+    )
+
+
+def _flat_pick_update(*tensors: torch.Tensor, limits: SafetyLimits) -> tuple[torch.Tensor, ...]:
+    return tuple(pick_update(*tensors, limits=limits))
+
+
+_SOURCES = [Path(__file__).resolve(), Path(__file__).resolve().parent.parent / "checks.py"]
+
+
+def pick_update_kernel(limits: SafetyLimits, device: torch.device | str, compile: bool | None = None) -> Kernel:
+    """The process's one `pick_update` kernel for `limits` on `device` (about a dozen small ops as one call on a
+    CPU, compiled ahead of time and cached on disk)."""
+    return shared_kernel(partial(_flat_pick_update, limits=limits), "pick_evaluator", limits, _SOURCES, device, compile)
 
 
 @register_env("AeroPick-v1", max_episode_steps=400)
