@@ -32,18 +32,23 @@ log = logging.getLogger(__name__)
 # in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
 INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
 # An AOTInductor package is C++ throughout. A kernel is a few hundred flops on small tensors, so what a call costs is
-# its bookkeeping: a heap tensor per intermediate buffer and an ATen call per small matmul. The small matmuls are
-# decomposed into the fused kernel (inductor's own pass: on a CPU it applies to a batch of one, physx_cpu's N), and
-# the intermediates live on the stack: a call about 3x cheaper (docs/performance.md), the outputs copied
-# (`_owned`: such a package hands out the same output buffers at every call). The minimal array-ref interface, which
-# goes with stack allocation in inductor's examples, also kept every call's inputs alive through the Python runner
-# (30 MB per 100k calls); tests/envs/control/test_fused.py checks that a call leaves nothing behind and that outputs
-# do not alias.
+# its bookkeeping: a tensor per buffer and an ATen call per small matmul. The small matmuls are decomposed into the
+# fused kernel (inductor's own pass: on a CPU it applies to a batch of one, physx_cpu's N). Where the buffers live is
+# each kernel's choice (docs/performance.md, hot loops at N = 1):
+# - on the heap (the default): every call returns fresh output tensors, allocated in C++. For the once-per-control-step
+#   kernels, whose outputs are many and all kept (the shared signals return 32), this is 2-2.5x cheaper than the stack
+#   and a copy of each output from Python (31 against 48 us for the signals, 3.3 against 8.4 for the pick evaluator);
+# - on the stack (`stack_allocation=True`): the intermediates cost nothing to allocate, but the package hands out the
+#   same output buffers at every call, so they are copied (`_owned`; `hands_out_again` finds such a package). For the
+#   240 Hz flight step, three outputs and many intermediates, this is 2x cheaper (6 against 13.5 us).
+# The minimal array-ref interface, which goes with stack allocation in inductor's examples, kept every call's inputs
+# alive through the Python runner (30 MB per 100k calls); tests/envs/control/test_fused.py and tests/envs/test_kernels.py
+# check that a call leaves nothing behind and that outputs do not alias.
 AOT_INDUCTOR_OPTIONS = {
     "cpp.vec_isa_ok": True,
-    "aot_inductor.allow_stack_allocation": True,
     "post_grad_fusion_options": {"decompose_mm_pass": {}},
 }
+STACK_ALLOCATION = {"aot_inductor.allow_stack_allocation": True}
 
 
 def compile_requested() -> bool:
@@ -74,15 +79,17 @@ class _Exported(torch.nn.Module):
 
 
 def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: str,
-             dynamic: dict[int, int] | None = None) -> Callable:
+             dynamic: dict[int, int] | None = None, stack_allocation: bool = False) -> Callable:
     """`fn` compiled ahead of time for the shapes of `tensors` (CPU), built once per key and loaded from the cache:
     returns a function of the flat tensor list that returns the flat list of outputs. `dynamic` maps an input's
-    position to the dimension left free (e.g. a scene's box count)."""
+    position to the dimension left free (e.g. a scene's box count); `stack_allocation`: intermediates on the stack,
+    and the same output buffers at every call (see `AOT_INDUCTOR_OPTIONS`)."""
     dynamic = dynamic or {}
+    options = {**AOT_INDUCTOR_OPTIONS, **(STACK_ALLOCATION if stack_allocation else {})}
     shapes = [tuple("*" if dynamic.get(i) == d else s for d, s in enumerate(t.shape)) for i, t in enumerate(tensors)]
     digest = hashlib.sha256(repr((
         key, shapes, [str(t.dtype) for t in tensors], torch.__version__, torch.backends.cpu.get_cpu_capability(),
-        AOT_INDUCTOR_OPTIONS,
+        options,
     )).encode()).hexdigest()[:24]
     path = cache_dir() / folder / f"{digest}.pt2"
     if not path.is_file():
@@ -96,13 +103,13 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
                 warnings.simplefilter("ignore", FutureWarning)
                 program = torch.export.export(_Exported(fn), tuple(tensors), strict=False,
                                               dynamic_shapes=dynamic_shapes if dynamic else None)
-                torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(AOT_INDUCTOR_OPTIONS))
+                torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(options))
             os.replace(tmp, path)
         finally:
             if os.path.exists(tmp):
                 os.remove(tmp)
     # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it).
-    with torch._inductor.config.patch(AOT_INDUCTOR_OPTIONS):
+    with torch._inductor.config.patch(options):
         return torch._inductor.aoti_load_package(str(path)).loader.run
 
 
@@ -125,6 +132,23 @@ def _owned(outputs: Sequence[torch.Tensor]) -> list[torch.Tensor]:
     return [t.clone() for t in outputs]
 
 
+def _as_is(outputs: Sequence[torch.Tensor]) -> Sequence[torch.Tensor]:
+    """A package with heap buffers returns fresh outputs at every call (an output that is a view of an input shares
+    that input's memory, as the eager function's does)."""
+    return outputs
+
+
+def hands_out_again(run: Callable, inputs: list[torch.Tensor]) -> bool:
+    """Whether the package `run` returns an output in the same memory at two calls, a view of an input aside: then
+    its outputs are copied (`_owned`). Stack allocation does this; found by calling it, not by the option asked for,
+    since one process that built a graph both ways was seen to run the first build's code for the second
+    (tests/envs/test_kernels.py)."""
+    own = {t.untyped_storage().data_ptr() for t in inputs}
+    first, second = run(inputs), run(inputs)
+    return any(a.untyped_storage().data_ptr() == b.untyped_storage().data_ptr()
+               and a.untyped_storage().data_ptr() not in own for a, b in zip(first, second))
+
+
 class Kernel:
     """`fn` (flat tensors in, a flat tuple of tensors out) as one call: compiled on its first call (ahead of time on
     a CPU, else `torch.compile`); on any compiler failure the next option, reported once. `backend` says which ran
@@ -132,14 +156,16 @@ class Kernel:
 
     `name` says what the kernel is in reports and names its cache folder; `key` is whatever else fixes `fn` besides
     the source of `sources` (bound parameters, constants); `shape_key` picks from the inputs what fixes every input
-    shape (default: all of them) and `dynamic` which dimensions stay free in an ahead-of-time package."""
+    shape (default: all of them) and `dynamic` which dimensions stay free in an ahead-of-time package;
+    `stack_allocation` keeps an ahead-of-time package's intermediates on the stack (`AOT_INDUCTOR_OPTIONS`)."""
 
     _reported: set[tuple[str, str]] = set()
 
     def __init__(self, fn: Callable, name: str, key: object, sources: Sequence[Path], device: torch.device | str,
                  compile: bool, dynamic: dict[int, int] | None = None,
-                 shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None):
+                 shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None, stack_allocation: bool = False):
         self.fn, self.name, self.dynamic = fn, name, dynamic
+        self.stack_allocation = stack_allocation
         self._key, self._sources = key, tuple(sources)
         self._shape_key = shape_key or self._free_shapes
         self.backend = "not run yet" if compile else "eager"
@@ -148,10 +174,12 @@ class Kernel:
         self.cuda_graphs = compile and self._mode is not None and "reduce-overhead" in self._mode and str(device).startswith("cuda")
         self._compiled: Callable | None = None  # torch.compile's function
         self._compile_failed = False
-        self._aot: dict[object, Callable] = {}  # per shape key: the loaded package
+        # per shape key: the loaded package, and what its outputs go through (`_owned` or `_as_is`)
+        self._aot: dict[object, tuple[Callable, Callable]] = {}
         self.aot_ok = compile and str(device) == "cpu" and self._mode is None
-        # the package for the shapes seen last: (its shape key, the package, the sizes of the call that found it)
-        self._fast: tuple[object, Callable, tuple] | None = None
+        # the package for the shapes seen last: (its shape key, the package, the sizes of the call that found it,
+        # what its outputs go through)
+        self._fast: tuple[object, Callable, tuple, Callable] | None = None
 
     def _free_shapes(self, tensors: tuple[torch.Tensor, ...]) -> tuple:
         """The input shapes, a free dimension left out: one package (loaded once) serves every size of it."""
@@ -165,22 +193,24 @@ class Kernel:
         fast = self._fast
         if fast is not None and fast[2] == tuple(map(_size, tensors)):  # the very sizes of the last call's package
             self.backend = "compiled ahead of time"
-            return _owned(fast[1](_contiguous(tensors)))
+            return fast[3](fast[1](_contiguous(tensors)))
         if self.aot_ok:
             shapes = self._shape_key(tensors)  # another size of a free dimension finds the same package
-            run = self._aot.get(shapes)
-            if run is None:
+            loaded = self._aot.get(shapes)
+            if loaded is None:
                 try:
                     key = repr((source_digest(self._sources), self._key))
-                    run = self._aot[shapes] = load_aot(self.fn, [t.contiguous() for t in tensors], key, self.name,
-                                                       self.dynamic)
+                    inputs = [t.contiguous() for t in tensors]
+                    run = load_aot(self.fn, inputs, key, self.name, self.dynamic, self.stack_allocation)
+                    loaded = self._aot[shapes] = (run, _owned if hands_out_again(run, inputs) else _as_is)
                 except Exception as exc:  # noqa: BLE001 - torch.compile (or eager) is the same function
                     self.aot_ok = False
                     self._report("ahead-of-time compilation", exc, "running torch.compile instead")
-            if run is not None:
-                self._fast = (shapes, run, tuple(map(_size, tensors)))
+            if loaded is not None:
+                run, outputs = loaded
+                self._fast = (shapes, run, tuple(map(_size, tensors)), outputs)
                 self.backend = "compiled ahead of time"
-                return _owned(run(_contiguous(tensors)))
+                return outputs(run(_contiguous(tensors)))
         compiled = self._compiled_fn()
         if compiled is None:
             return self.fn(*tensors)
@@ -196,9 +226,10 @@ class Kernel:
 
     def package(self, *tensors: torch.Tensor) -> Callable | None:
         """The ahead-of-time package this kernel ran last, if it was for inputs shaped like `tensors`; else None. It
-        takes the flat list of inputs, which must be contiguous, and returns the package's own output buffers, which
-        its next call overwrites. For a hot loop that checks contiguity itself and copies what it keeps: a small
-        kernel's call through `__call__` is mostly those checks and copies."""
+        takes the flat list of inputs, which must be contiguous, and returns its outputs as they are: with stack
+        allocation, the package's own output buffers, which its next call overwrites. For a hot loop that
+        checks contiguity itself and copies what it keeps: a small kernel's call through `__call__` is mostly those
+        checks and copies."""
         fast = self._fast
         return fast[1] if self._compile and fast is not None and fast[0] == self._shape_key(tensors) else None
 

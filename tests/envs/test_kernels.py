@@ -1,8 +1,10 @@
-"""`kernels.shared_kernel`: one kernel per process for each name, key, device and compile setting."""
+"""`kernels`: one shared kernel per process for each name, key, device and compile setting; a compiled call's outputs
+are the caller's."""
 
+import pytest
 import torch
 
-from aerobench.envs.kernels import shared_kernel
+from aerobench.envs.kernels import Kernel, hands_out_again, shared_kernel
 
 
 def _plus_one(x: torch.Tensor) -> tuple[torch.Tensor]:
@@ -19,3 +21,54 @@ def test_a_shared_kernel_is_made_once_per_name_key_device_and_setting():
     ]
     assert all(other is not kernel for other in others) and len({id(o) for o in others}) == 3
     assert kernel.backend == "eager" and torch.equal(kernel(torch.ones(2))[0], torch.full((2,), 2.0))
+
+
+def _step(x: torch.Tensor, memory: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    y = torch.sin(x) * memory + x[:, :1]
+    return y, memory + y.sum(-1, keepdim=True), x[:, :2]  # the last: a view of an input
+
+
+def _other_step(x: torch.Tensor, memory: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    # another graph: one graph built both ways in one process was seen to run its first build's code for the second
+    y = torch.cos(x) * memory - x[:, 1:2]
+    return y, memory + y.sum(-1, keepdim=True), x[:, :2]
+
+
+@pytest.mark.parametrize("fn, stack_allocation", [(_step, False), (_other_step, True)])
+def test_a_compiled_kernels_outputs_are_the_callers_and_nothing_stays_alive(fn, stack_allocation, aot_cache):
+    """Ahead of time, either buffer placement: what a call returns is the eager numbers and is not overwritten by
+    the next call (fed back or kept), and a call keeps neither its inputs nor its outputs alive."""
+    import weakref
+
+    kernel = Kernel(fn, "test_outputs", ("step", stack_allocation), [], "cpu", compile=True,
+                    stack_allocation=stack_allocation)
+    x, memory = torch.randn(1, 4), torch.randn(1, 1)
+    first = kernel(x, memory)
+    assert kernel.backend == "compiled ahead of time", kernel.backend
+    for a, b in zip(first, fn(x, memory)):
+        torch.testing.assert_close(a, b)
+    kept = [t.clone() for t in first]
+    second = kernel(-x, first[1])  # the memory fed back, another input
+    for mine, copy, later in zip(first[:2], kept, second):
+        assert torch.equal(mine, copy) and mine.data_ptr() != later.data_ptr()
+    torch.testing.assert_close(second[1], fn(-x, kept[1])[1])
+    inputs = [torch.randn(1, 4), torch.randn(1, 1)]
+    refs = [weakref.ref(t) for t in inputs]
+    outputs = [weakref.ref(t) for t in kernel(*inputs)]
+    del inputs
+    assert [r() is None for r in refs + outputs] == [True] * (len(refs) + len(outputs))
+
+
+def test_a_package_that_hands_out_its_buffers_again_is_found():
+    """`hands_out_again`: an output in the same memory at two calls (a stack-allocated package's), but not an output
+    that is a view of an input, nor fresh outputs."""
+    x = torch.randn(1, 4)
+    buffer = torch.zeros(1, 4)
+
+    def reuses(inputs):
+        return [buffer.copy_(inputs[0] * 2), inputs[0][:, :2]]
+
+    def fresh(inputs):
+        return [inputs[0] * 2, inputs[0][:, :2]]
+
+    assert hands_out_again(reuses, [x]) and not hands_out_again(fresh, [x])
