@@ -22,7 +22,8 @@ import logging
 import os
 import tempfile
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import torch
@@ -89,7 +90,7 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
     shapes = [tuple("*" if dynamic.get(i) == d else s for d, s in enumerate(t.shape)) for i, t in enumerate(tensors)]
     digest = hashlib.sha256(repr((
         key, shapes, [str(t.dtype) for t in tensors], torch.__version__, torch.backends.cpu.get_cpu_capability(),
-        options,
+        options, "wrapper chosen per build",  # (packages built before `_cpu_wrapper` may not be what they say)
     )).encode()).hexdigest()[:24]
     path = cache_dir() / folder / f"{digest}.pt2"
     if not path.is_file():
@@ -99,8 +100,8 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
         try:  # built beside its final name and renamed: a concurrent process sees a whole package or none
             free = {i: torch.export.Dim(f"dim{i}_{d}", min=1) for i, d in dynamic.items()}
             dynamic_shapes = (tuple({dynamic[i]: free[i]} if i in free else None for i in range(len(tensors))),)
-            with warnings.catch_warnings():  # torch's own pytree deprecation notes, nothing a user can act on
-                warnings.simplefilter("ignore", FutureWarning)
+            with warnings.catch_warnings(), _cpu_wrapper(stack_allocation):
+                warnings.simplefilter("ignore", FutureWarning)  # torch's own pytree notes, nothing to act on
                 program = torch.export.export(_Exported(fn), tuple(tensors), strict=False,
                                               dynamic_shapes=dynamic_shapes if dynamic else None)
                 torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(options))
@@ -111,6 +112,31 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
     # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it).
     with torch._inductor.config.patch(options):
         return torch._inductor.aoti_load_package(str(path)).loader.run
+
+
+@contextmanager
+def _cpu_wrapper(stack_allocation: bool) -> Iterator[None]:
+    """Build with the CPU wrapper class that goes with `stack_allocation`. Inductor registers that class once per
+    process, by the option of the first build, and every later build in the process used it whatever it asked for
+    (a stack build after a heap one came out on the heap, 2x slower a call); here each build gets its own. Torch
+    internals: where they are not as expected, the build goes ahead as registered (`hands_out_again` still finds
+    what the package does)."""
+    try:
+        from torch._inductor.codegen import common
+        from torch._inductor.codegen.cpp_wrapper_cpu import CppWrapperCpu
+        from torch._inductor.codegen.cpp_wrapper_cpu_array_ref import CppWrapperCpuArrayRef
+
+        common.init_backend_registration()
+        entry = common.device_codegens["cpu"]
+        saved = entry.cpp_wrapper_codegen
+    except (ImportError, AttributeError, KeyError):
+        yield
+        return
+    entry.cpp_wrapper_codegen = CppWrapperCpuArrayRef if stack_allocation else CppWrapperCpu
+    try:
+        yield
+    finally:
+        entry.cpp_wrapper_codegen = saved
 
 
 _size, _is_contiguous = torch.Tensor.size, torch.Tensor.is_contiguous
