@@ -204,7 +204,7 @@ class PickExpert(SkillExpert):
 
     def _draw_back(self) -> torch.Tensor:
         """`draw_back_m` of this step's object and this expert's plan."""
-        support = self.env.supports[torch.arange(self.n, device=self.device), self.evaluator.support_index]
+        support = self.evaluator.support_row
         return draw_back_m(support, self.heading, self.object_position(), forward_of(self.heading),
                            self.forearm_droops(self.evaluator))
 
@@ -222,13 +222,12 @@ class PickExpert(SkillExpert):
         """This control step's tensors of `pick_step` (the env's step context and signals, the expert's memory, the
         plan)."""
         ctx, info, env, ev = self.env.current_step_context(), self.env.evaluate(), self.env, self.evaluator
-        rows = torch.arange(self.n, device=self.device)
         arm = (self.arm_rest, self.arm_top_down, self.arm_params.lower, self.arm_params.upper) if self.has_arm else ()
         return [
             ctx.state.position, ctx.state.velocity, ctx.state.rotation, ctx.tcp, ctx.object_pose.p, ctx.object_rotation,
             info["is_grasped"], info["lift_height"],
             self.phase, self.timer, self.retries, self.lift_from, self.draw_back, self.drawn, self.turned, self.route.index,
-            ev.heading, ev.enclosed, env.supports[rows, ev.support_index], ev.clear_height(), env.target_height,
+            ev.heading, ev.enclosed, ev.support_row, ev.clear_height(), env.target_height,
             env.target_grasp_point, env.target_half_extent, env.target_grasps_rim, self.align_tolerance, self.deepest,
             self.forearm_droops(ev), self.back_yaw, self.route.points, self.route.length, *arm,
         ]

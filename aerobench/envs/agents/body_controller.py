@@ -69,6 +69,9 @@ class AerialBodyController(BaseController):
         # physx_cpu holds one env: the PhysX articulation itself is read and written every physics step (ManiSkill's
         # batched wrapper around it costs several microseconds per call, a sizeable share of a 240 Hz step)
         self._cpu_articulation = None if self.scene.gpu_sim_enabled else self.articulation._objs[0]
+        # ... into the lean loop's own joint buffers, which the compiled step consumes at once (filling two arrays
+        # costs about half of two fresh tensors): (q, qd, their numpy views), made at the first lean step
+        self._loop_joints: tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray] | None = None
         self.telemetry: list[dict[str, torch.Tensor]] | None = None  # set to [] to record every physics step
 
     # ----------------------------------------------------------------------------------------------------------------
@@ -127,13 +130,23 @@ class AerialBodyController(BaseController):
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
         cpu = self._cpu_articulation
-        q_all, qd_all = self.joint_state()
+        lean = self.telemetry is None and self.leading_joints
+        if lean and cpu is not None:
+            joints = self._loop_joints
+            if joints is None:
+                q, qd = (t.clone() for t in self.joint_state())
+                joints = self._loop_joints = (q, qd, q.numpy()[0], qd.numpy()[0])
+            q_all, qd_all, q_np, qd_np = joints
+            q_np[:] = cpu.get_qpos()
+            qd_np[:] = cpu.get_qvel()
+        else:
+            q_all, qd_all = self.joint_state()
         m = self.memory
         tensors = [q_all, qd_all, self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w,
                    self._needs_yaw_sync]
         if self.arm is not None:
             tensors += [self.arm_target, self.contact_mode]
-        if self.telemetry is None and self.leading_joints:
+        if lean:
             # the lean step: whole joint vectors in, every joint's effort out (the fingers' zero), nothing else
             loop = self._efforts_loop
             if loop is None or loop[0] is not self.step_fn:  # the first call builds or loads the package

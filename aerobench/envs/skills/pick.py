@@ -103,6 +103,8 @@ class PickEvaluator(SkillEvaluator):
         self.kinds = self.where or env.setting.pick_supports
         self.rest_z = self.zeros()
         self.support_index = self.zeros(torch.long)
+        self.support_row = torch.zeros(self.n, 9, device=self.device)  # its row of `env.supports`, kept at sampling
+        self.free_height = self.zeros()  # ... and that row's free height above (read at every expert step)
         self.hold_streak = self.zeros(torch.long)
         specs = env.target_specs
         self.is_round = torch.tensor([s.shape in ROUND_SHAPES for s in specs], dtype=torch.bool, device=self.device)
@@ -133,6 +135,8 @@ class PickEvaluator(SkillEvaluator):
         self.enclosed[env_idx], self.inward[env_idx] = enclosed, inward
         env.place_object(env.target, env_idx, bottom, yaw)
         self.support_index[env_idx] = index
+        self.support_row[env_idx] = row
+        self.free_height[env_idx] = row[:, 8]
         self.rest_z[env_idx] = bottom[:, 2]
         return ok
 
@@ -167,8 +171,7 @@ class PickEvaluator(SkillEvaluator):
 
     def clear_height(self) -> torch.Tensor:
         """`(N,)` the free height above each env's source support (large where nothing is above)."""
-        rows = torch.arange(self.env.num_envs, device=self.device)
-        return self.env.supports[rows, self.support_index, 8]
+        return self.free_height
 
     def begin(self, env_idx):
         pose = self.env.target.pose
