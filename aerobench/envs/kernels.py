@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
+import shutil
 import tempfile
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -110,8 +111,35 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
             if os.path.exists(tmp):
                 os.remove(tmp)
     # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it).
+    before = _mapped_libraries()
     with torch._inductor.config.patch(options):
-        return torch._inductor.aoti_load_package(str(path)).loader.run
+        run = torch._inductor.aoti_load_package(str(path)).loader.run
+    _remove_extractions(_mapped_libraries() - before)
+    return run
+
+
+_PROC_MAPS = Path("/proc/self/maps")
+
+
+def _mapped_libraries() -> set[str]:
+    """The shared libraries this process has mapped (Linux; elsewhere none are found)."""
+    try:
+        return {line.split()[-1] for line in _PROC_MAPS.read_text().splitlines() if line.endswith(".so")}
+    except OSError:
+        return set()
+
+
+def _remove_extractions(libraries: set[str]) -> None:
+    """Loading a package extracts it to a fresh `<tmp>/XXXXXX` folder that torch never removes: 0.7 MB per kernel
+    and process, which every worker of every job left behind. Once loaded, the library is mapped and its files are
+    not read again: the folders of `libraries` (this load's, `<tmp>/XXXXXX/<build>/data/aotinductor/model/*.so`)
+    go."""
+    for library in libraries:
+        parts = Path(library).parts
+        if len(parts) >= 7 and parts[-4:-1] == ("data", "aotinductor", "model"):
+            folder = Path(*parts[:-5])
+            if folder.parent == Path(tempfile.gettempdir()) or folder.parent == Path("/tmp"):
+                shutil.rmtree(folder, ignore_errors=True)
 
 
 @contextmanager
@@ -169,6 +197,7 @@ def hands_out_again(run: Callable, inputs: list[torch.Tensor]) -> bool:
     its outputs are copied (`_owned`). Stack allocation does this; found by calling it, not by the option asked for,
     since one process that built a graph both ways was seen to run the first build's code for the second
     (tests/envs/test_kernels.py)."""
+    inputs = [t.clone() for t in inputs]  # a package may write into its inputs (a controller's memory)
     own = {t.untyped_storage().data_ptr() for t in inputs}
     first, second = run(inputs), run(inputs)
     return any(a.untyped_storage().data_ptr() == b.untyped_storage().data_ptr()

@@ -100,3 +100,30 @@ def test_the_body_controller_is_the_only_one_between_physics_steps(env):
         assert set(controllers) == {"body", "gripper"}, mode
         assert controllers["gripper"].controller_cls is FingerController, mode
     assert FingerController.before_simulation_step is not PDJointPosMimicController.before_simulation_step
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_the_controller_state_handed_out_and_taken_in_is_a_copy(platform, monkeypatch, aot_cache):
+    """The compiled 240 Hz loop updates the controller memory's integrator and heading in place: a state read from
+    the body controller, or one given to it, must not change as the drone flies on."""
+    monkeypatch.setenv("AEROBENCH_COMPILE", "1")
+    env = gym.make("AeroFly-v1", obs_mode="state", scene="empty", platform=platform)
+    env.reset(seed=0)
+    base = env.unwrapped
+    body = base.agent.body_controller
+    climb = torch.zeros(1, base.platform.action_dim)
+    climb[:, 2], climb[:, 3] = 0.5, 0.3  # climb and turn: the vertical integrator and the heading move
+    for _ in range(2):
+        env.step(climb)
+    assert body.step_fn.kernels["efforts_in_place"].backend == "compiled ahead of time"
+    state = body.get_state()
+    kept = {k: v.clone() for k, v in state.items()}
+    for _ in range(3):
+        env.step(climb)
+    assert not torch.equal(body.memory.xi, kept["xi"])  # the memory moved on ...
+    assert all(torch.equal(state[k], kept[k]) for k in state)  # ... the state read before did not
+    body.set_state(state)
+    for _ in range(3):
+        env.step(climb)
+    assert all(torch.equal(state[k], kept[k]) for k in state)  # nor the state given to it
+    env.close()

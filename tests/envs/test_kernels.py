@@ -1,6 +1,8 @@
 """`kernels`: one shared kernel per process for each name, key, device and compile setting; a compiled call's outputs
 are the caller's."""
 
+from pathlib import Path
+
 import pytest
 import torch
 
@@ -72,3 +74,17 @@ def test_a_package_that_hands_out_its_buffers_again_is_found():
         return [inputs[0] * 2, inputs[0][:, :2]]
 
     assert hands_out_again(reuses, [x]) and not hands_out_again(fresh, [x])
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="reads the process's mapped libraries (Linux)")
+def test_a_loaded_package_leaves_no_extracted_files_behind(aot_cache):
+    """torch extracts a package to a fresh temporary folder at each load and never removes it; once the library is
+    mapped, `load_aot` does (every worker of every job left 0.7 MB per kernel)."""
+    kernel = Kernel(_step, "test_extraction", ("step",), [], "cpu", compile=True)
+    kernel(torch.randn(1, 4), torch.randn(1, 1))
+    assert kernel.backend == "compiled ahead of time", kernel.backend
+    lines = [line.split(maxsplit=5) for line in Path("/proc/self/maps").read_text().splitlines()]
+    mapped = {fields[5].removesuffix(" (deleted)") for fields in lines if len(fields) == 6}
+    packages = [path for path in mapped if "/data/aotinductor/model/" in path]
+    assert packages  # the package's library is mapped ...
+    assert not [path for path in packages if Path(path).exists()]  # ... and its extracted files are gone

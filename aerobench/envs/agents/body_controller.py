@@ -197,14 +197,14 @@ class AerialBodyController(BaseController):
         return None if self.last_result is None else self.last_result[0].state(*self.last_result[1:])
 
     def get_state(self) -> dict:
+        # copies, both ways: the 240 Hz loop updates the memory's xi and yaw_des in place (`efforts_loop`)
         m = self.memory
-        return {"xi": m.xi, "yaw_des": m.yaw_des[:, None], "mass_hat": m.mass_hat[:, None]}
+        return {"xi": m.xi.clone(), "yaw_des": m.yaw_des[:, None].clone(), "mass_hat": m.mass_hat[:, None].clone()}
 
     def set_state(self, state: dict):
         if state:
-            self.memory = replace(
-                self.memory, xi=state["xi"], yaw_des=state["yaw_des"][:, 0], mass_hat=state["mass_hat"][:, 0]
-            )
+            self.memory = replace(self.memory, xi=state["xi"].clone(), yaw_des=state["yaw_des"][:, 0].clone(),
+                                  mass_hat=state["mass_hat"][:, 0].clone())
             self._needs_yaw_sync[:] = False
 
     # ----------------------------------------------------------------------------------------------------------------

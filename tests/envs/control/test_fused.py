@@ -136,28 +136,32 @@ def test_a_compiled_call_keeps_nothing_alive_and_its_outputs_are_its_own(aot_cac
 
 
 def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_cache):
-    """`efforts_loop`, what the body controller calls at every physics step after the first: the package itself
-    where one runs, with the kernel's numbers; the controller memory it returns is the caller's; a non-contiguous
-    input goes through the kernel's wrapper (the package reads raw memory); without a package, the kernel."""
+    """`efforts_loop`, what the body controller calls at every physics step after the first: the in-place package
+    itself where one runs, with the pure kernel's numbers, the new controller memory written into the memory tensors
+    it was given (and returned as they are); a non-contiguous input goes through the pure kernel's wrapper (the
+    package reads raw memory); without a package, the pure kernel."""
     spec, tensors = _tensors("gripper", n=1)
     fingers = torch.randn(1, 2)
     inputs = [torch.cat([tensors[0], fingers], -1), torch.cat([tensors[1], -fingers], -1), *(t.clone() for t in tensors[2:])]
     step = FusedPhysicsStep(spec, "cpu", compile=True)
-    first = step.efforts(*inputs)  # builds or loads the package
-    assert step.kernels["efforts"].package(*inputs) is not None
-    loop = step.efforts_loop(inputs)
-    looped = loop(inputs)
-    assert all(torch.equal(a, b) for a, b in zip(looped, first))
-    memory = [t.clone() for t in looped[1:]]
-    inputs[2] = -inputs[2]  # another velocity command
-    again = loop(inputs)
-    assert not torch.equal(again[0], first[0]) and all(torch.equal(a, b) for a, b in zip(looped[1:], memory))
-    strided = list(inputs)
+    before = [t.clone() for t in inputs]
+    loop = step.efforts_loop(inputs)  # builds or loads the package (on copies: the inputs are untouched)
+    assert all(torch.equal(a, b) for a, b in zip(inputs, before))
+    assert step.kernels["efforts_in_place"].package(*inputs) is not None
+    for command in (1.0, -1.0):  # two calls, the second with another velocity command and the memory it left
+        inputs[2] = command * before[2]
+        expected = step.efforts(*[t.clone() for t in inputs])
+        looped = loop(inputs)
+        assert looped[1] is inputs[4] and looped[2] is inputs[5]  # the memory, updated in place
+        for a, b in zip(looped, expected):
+            torch.testing.assert_close(a, b, rtol=1e-6, atol=1e-6)
+    assert not torch.equal(inputs[4], before[4])  # the integrator moved
+    strided = [t.clone() for t in inputs]
     strided[4] = torch.stack([inputs[4], inputs[4]], -1)[..., 0]  # xi, the same values in a strided view
     assert not strided[4].is_contiguous() and torch.equal(strided[4], inputs[4])
     assert all(torch.equal(a, b) for a, b in zip(loop(strided), step.efforts(*inputs)))
     eager = FusedPhysicsStep(spec, "cpu", compile=False)
-    assert eager.kernels["efforts"].package(*inputs) is None
+    assert eager.kernels["efforts_in_place"].package(*inputs) is None
     assert all(torch.equal(a, b) for a, b in zip(eager.efforts_loop(inputs)(inputs), eager.eager_efforts(*inputs)))
 
 
