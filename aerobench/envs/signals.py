@@ -20,7 +20,7 @@ import torch
 
 from .checks import SafetyLimits, consecutive, flight_envelope_flags, is_pinched, nontarget_contact_force, support_force
 from .control.so3 import quat_rotate, quat_wxyz_to_matrix
-from .control.virtual_joints import airframe_state_from_joints
+from .control.virtual_joints import airframe_state_from_joints, joint_columns
 from .geometry import body_points_to_world, min_distance_to_boxes
 from .kernels import Kernel, shared_kernel
 from .observations import GRASP_CONFIRM_STEPS, proprio_state
@@ -103,13 +103,6 @@ def planned_grasp_point(position: torch.Tensor, R: torch.Tensor, tcp: torch.Tens
     return torch.where(grasps_rim[:, None], position + (R @ rim[..., None])[..., 0], point)
 
 
-def _columns(x: torch.Tensor, columns: tuple[int, ...]) -> torch.Tensor:
-    """`x[:, columns]`: a slice where the columns are one ascending run."""
-    if columns and list(columns) == list(range(columns[0], columns[-1] + 1)):
-        return x[:, columns[0] : columns[-1] + 1]
-    return x[:, list(columns)]
-
-
 def shared_signals(
     q: torch.Tensor,
     qd: torch.Tensor,
@@ -135,9 +128,10 @@ def shared_signals(
     its pose at the episode's start (position `(N, 3)`, wxyz `(N, 4)`), and the grasp streak so far `(N,)`, whether
     the episode started with the object in the jaws `(N,)` and the episode's control step `(N,)`.
     """
-    q_v, qd_v = _columns(q, const.virtual_joints), _columns(qd, const.virtual_joints)
-    finger_q, finger_qd = _columns(q, const.finger_joints), _columns(qd, const.finger_joints)
-    arm = (_columns(q, const.arm_joints), _columns(qd, const.arm_joints)) if const.arm_joints else ()
+    virtual, fingers = joint_columns(const.virtual_joints, q.device), joint_columns(const.finger_joints, q.device)
+    q_v, qd_v, finger_q, finger_qd = q[:, virtual], qd[:, virtual], q[:, fingers], qd[:, fingers]
+    arm = joint_columns(const.arm_joints, q.device) if const.arm_joints else None
+    arm_q = () if arm is None else (q[:, arm], qd[:, arm])
     state = airframe_state_from_joints(q_v, qd_v)
     position, rotation = state.position, state.rotation
     link_p, link_q = grasp_link_pose[:, :3], grasp_link_pose[:, 3:]
@@ -165,7 +159,7 @@ def shared_signals(
         tilt_rate=torch.linalg.norm(state.angular_velocity_body[:, :2], dim=-1),
         clearance=min_distance_to_boxes(points, boxes) - const.proxy_radius,
         **envelope,
-        proprio=proprio_state(state, finger_q, finger_qd, *arm),
+        proprio=proprio_state(state, finger_q, finger_qd, *arm_q),
     )
     if not const.has_target:
         return SharedSignals(**shared)

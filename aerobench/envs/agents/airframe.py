@@ -24,11 +24,12 @@ from ..control.virtual_joints import (
     VIRTUAL_JOINT_NAMES,
     AirframeState,
     airframe_state_from_joints,
+    joint_columns,
 )
 from ..observations import proprio_state
 from ..platforms import Component, PlatformSpec
 from ..poses import pose_of
-from .body_controller import AerialBodyController, AerialBodyControllerConfig, joint_columns
+from .body_controller import AerialBodyController, AerialBodyControllerConfig
 from .finger_controller import FingerControllerConfig
 
 # PhysX needs a mass on every link; the virtual links carry a negligible one (0.02% of the airframe in total) and

@@ -9,7 +9,7 @@ PD mimic controller combined after it.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -21,17 +21,8 @@ from ..control.arm import normalized_arm_action
 from ..control.flight import FlightMemory, FlightOutput
 from ..control.fused import fused_physics_step
 from ..control.payload import ControllerMode
-from ..control.virtual_joints import AirframeState
+from ..control.virtual_joints import AirframeState, joint_columns
 from ..platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PlatformSpec
-
-
-def joint_columns(indices: Sequence[int], device: torch.device | str) -> slice | torch.Tensor:
-    """The columns `indices` of `(N, J)` joint vectors: a slice where they are one ascending run (a view, read at
-    no gather's cost: a per-step read of a few columns by a list costs microseconds), else an index tensor."""
-    idx = [int(i) for i in indices]
-    if idx and idx == list(range(idx[0], idx[-1] + 1)):
-        return slice(idx[0], idx[-1] + 1)
-    return torch.tensor(idx, dtype=torch.long, device=device)
 
 
 class AerialBodyController(BaseController):

@@ -7,12 +7,22 @@ W = (F, tau_O) about O becomes joint efforts Q = J^T W, where J maps joint veloc
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
 
 NUM_VIRTUAL_JOINTS = 6
 VIRTUAL_JOINT_NAMES = ("root_x", "root_y", "root_z", "root_yaw", "root_pitch", "root_roll")
+
+
+def joint_columns(indices: Sequence[int], device: torch.device | str) -> slice | torch.Tensor:
+    """The columns `indices` of `(N, J)` joint vectors: a slice where they are one ascending run (a view, read at
+    no gather's cost: a per-step read of a few columns by a list costs microseconds), else an index tensor."""
+    idx = [int(i) for i in indices]
+    if idx and idx == list(range(idx[0], idx[-1] + 1)):
+        return slice(idx[0], idx[-1] + 1)
+    return torch.tensor(idx, dtype=torch.long, device=device)
 
 
 @dataclass
