@@ -194,9 +194,8 @@ def _as_is(outputs: Sequence[torch.Tensor]) -> Sequence[torch.Tensor]:
 
 def hands_out_again(run: Callable, inputs: list[torch.Tensor]) -> bool:
     """Whether the package `run` returns an output in the same memory at two calls, a view of an input aside: then
-    its outputs are copied (`_owned`). Stack allocation does this; found by calling it, not by the option asked for,
-    since one process that built a graph both ways was seen to run the first build's code for the second
-    (tests/envs/test_kernels.py)."""
+    its outputs are copied (`_owned`). Stack allocation does this; found by calling it, not taken from the option
+    asked for, which a build once ignored (`_cpu_wrapper`)."""
     inputs = [t.clone() for t in inputs]  # a package may write into its inputs (a controller's memory)
     own = {t.untyped_storage().data_ptr() for t in inputs}
     first, second = run(inputs), run(inputs)

@@ -141,10 +141,8 @@ class AerialBodyController(BaseController):
             # the lean step: whole joint vectors in, every joint's effort out (the fingers' zero), nothing else
             loop = self._efforts_loop
             if loop is None or loop[0] is not self.step_fn:  # the first call builds or loads the package
-                efforts, m.xi, m.yaw_des = self.step_fn.efforts(*tensors)
-                self._efforts_loop = (self.step_fn, self.step_fn.efforts_loop(tensors))
-            else:
-                efforts, m.xi, m.yaw_des = loop[1](tensors)
+                loop = self._efforts_loop = (self.step_fn, self.step_fn.efforts_loop(tensors))
+            efforts, m.xi, m.yaw_des = loop[1](tensors)
             if self._yaw_sync_pending:
                 self._needs_yaw_sync.zero_()
                 self._yaw_sync_pending = False
