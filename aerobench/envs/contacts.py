@@ -49,6 +49,8 @@ class ContactReader:
         self._bodies: tuple[dict, dict, object, set] | None = None
         self._routes: dict[tuple, int] = {}  # body pair -> index in _route_rows
         self._route_rows: list[tuple[tuple[int, float], ...]] = [()]
+        self._routing_matrix = np.zeros((len(self.link_names) + self.EXTRA_ROWS, 0))  # `_routing()`
+        self._dt = scene.timestep  # the physics step: impulses over it are forces
 
     def read(self) -> ContactReadout:
         if self.scene.gpu_sim_enabled:
@@ -90,6 +92,17 @@ class ContactReader:
             self._route_rows.append(route)
         return self._route_rows.index(route)
 
+    def _routing(self) -> np.ndarray:
+        """`(rows, routes)`: the sign each route's impulse adds to each readout row (all routes found so far)."""
+        matrix = self._routing_matrix
+        if matrix.shape[1] != len(self._route_rows):
+            matrix = np.zeros((len(self.link_names) + self.EXTRA_ROWS, len(self._route_rows)))
+            for k, route in enumerate(self._route_rows):
+                for row, sign in route:
+                    matrix[row, k] += sign
+            self._routing_matrix = matrix
+        return matrix
+
     def _body_index(self) -> tuple[dict, dict, object, set]:
         # PhysX bodies by their Python wrapper: pybind returns the one wrapper of a live C++ object, and ManiSkill
         # holds each body's, so a contact's `bodies` are these very objects and an identity lookup finds them (a
@@ -107,7 +120,8 @@ class ContactReader:
     def _read_cpu(self) -> ContactReadout:
         # Python touches each point of a followed contact once (its impulse, a 3-vector). The points are gathered per
         # route (pairs that feed the same rows with the same signs: e.g. every shape of a resting object against its
-        # support) and each route's sum is one numpy call. The route of a body pair is found once and kept.
+        # support) and each route's sum is one numpy call; one product spreads them over the readout's rows. The
+        # route of a body pair is found once and kept.
         routes = self._routes
         gathered: dict[int, list[np.ndarray]] = {}
         for contact in self.scene.px.get_contacts():
@@ -120,14 +134,12 @@ class ContactReader:
                 if points is None:
                     points = gathered[route] = []
                 points.extend([p.impulse for p in contact.points])
-        n = len(self.link_names)
-        out = np.zeros((n + self.EXTRA_ROWS, 3))
+        totals = np.zeros((len(self._route_rows), 3))
         for route, points in gathered.items():
             if points:
-                total = np.concatenate(points).reshape(-1, 3).sum(axis=0, dtype=np.float64)
-                for row, sign in self._route_rows[route]:
-                    out[row] += sign * total
-        forces = torch.as_tensor(out / self.scene.timestep, dtype=torch.float32)[None]
+                totals[route] = np.concatenate(points).reshape(-1, 3).sum(axis=0, dtype=np.float64)
+        forces = torch.from_numpy((self._routing() @ totals / self._dt).astype(np.float32))[None]
+        n = len(self.link_names)
         on_target, on_handle = n + self.ON_TARGET, n + self.ON_HANDLE
         return ContactReadout(forces[:, :n], forces[:, on_target : on_target + 2], forces[:, n + self.TARGET_NET],
                               forces[:, on_handle : on_handle + 2])

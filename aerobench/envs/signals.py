@@ -55,6 +55,7 @@ class SharedSignals(NamedTuple):
     rotation: torch.Tensor  # airframe, body to world
     angular_velocity_body: torch.Tensor
     tcp: torch.Tensor  # (N, 3) tool centre point
+    tcp_pose: torch.Tensor  # (N, 7) its pose (p, wxyz): the grasp link's orientation
     opening_dirs: torch.Tensor  # (N, 2, 3) each finger's opening direction
     speed: torch.Tensor
     angular_speed: torch.Tensor
@@ -148,6 +149,7 @@ def shared_signals(
         rotation=rotation,
         angular_velocity_body=state.angular_velocity_body,
         tcp=tcp,
+        tcp_pose=torch.cat([tcp, link_q], -1),
         opening_dirs=opening_dirs,
         speed=torch.linalg.norm(qd_v[:, :3], dim=-1),
         angular_speed=torch.linalg.norm(omega_world, dim=-1),

@@ -56,6 +56,8 @@ class ExpertController:
         self.experts[0].reset(env_idx)
 
     def act(self) -> torch.Tensor:
+        if len(self.experts) == 1:  # a single skill: one stage, never changed (a few ops less per control step)
+            return self.experts[0].act()
         active = self.env.active_evaluator_index()
         changed = active != self.stage
         if changed.any():
@@ -64,8 +66,6 @@ class ExpertController:
                 if len(rows):
                     expert.reset(rows)
             self.stage = active.clone()
-        if len(self.experts) == 1:
-            return self.experts[0].act()
         actions = torch.stack([expert.act() for expert in self.experts], dim=0)
         return actions[active, torch.arange(self.env.num_envs, device=self.env.device)]
 

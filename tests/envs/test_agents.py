@@ -13,6 +13,7 @@ from aerobench.envs.agents import NonFiniteActionError
 from aerobench.envs.agents.airframe import VIRTUAL_LINK_NAMES
 from aerobench.envs.agents.finger_controller import FingerController
 from aerobench.envs.flight_test import articulated_mass_properties
+from aerobench.envs.platforms import MAX_SPEED_MPS
 
 
 @pytest.fixture(scope="module", params=["gripper", "arm"])
@@ -56,11 +57,22 @@ def test_rotor_disks_are_collision_shapes(env):
     assert centres == [(-0.174, -0.174), (-0.174, 0.174), (0.174, -0.174), (0.174, 0.174)]
 
 
-def test_non_finite_action_names_the_env(env):
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_action_names_the_env(env, bad):
     action = np.zeros(env.platform.action_dim, dtype=np.float32)
-    action[2] = np.nan
+    action[2] = bad
     with pytest.raises(NonFiniteActionError, match=r"env index 0"):
         env.step(action)
+
+
+def test_finite_actions_whose_sum_overflows_are_taken(env):
+    """The check sums the action first: finite values whose float32 sum overflows still reach the controller (it
+    clamps them to [-1, 1]), as any finite action does."""
+    action = np.zeros(env.platform.action_dim, dtype=np.float32)
+    action[:2] = np.finfo(np.float32).max
+    assert not np.isfinite(torch.as_tensor(action).sum().item())
+    env.step(action)
+    assert torch.equal(env.agent.body_controller.velocity_cmd[0, :2], torch.full((2,), MAX_SPEED_MPS))
 
 
 def test_three_onboard_rgbd_cameras():

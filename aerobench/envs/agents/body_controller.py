@@ -56,6 +56,7 @@ class AerialBodyController(BaseController):
         self.leading_joints = idx == list(range(len(idx)))
         self._joints = joint_columns(idx, self.device)
         self._qf = None
+        self._qf_view: tuple[torch.Tensor, np.ndarray] | None = None  # (the loop's efforts, the array PhysX reads)
         self._efforts_loop: tuple[object, Callable] | None = None  # (the step it is for, `step_fn.efforts_loop`)
         # physx_cpu holds one env: the PhysX articulation itself is read and written every physics step (ManiSkill's
         # batched wrapper around it costs several microseconds per call, a sizeable share of a 240 Hz step)
@@ -147,7 +148,10 @@ class AerialBodyController(BaseController):
                 self._needs_yaw_sync.zero_()
                 self._yaw_sync_pending = False
             if cpu is not None:
-                cpu.set_qf(efforts.numpy()[0])
+                qf = self._qf_view
+                if qf is None or qf[0] is not efforts:  # the loop's own buffer comes back each call: one view of it
+                    qf = self._qf_view = (efforts, efforts.numpy()[0])
+                cpu.set_qf(qf[1])
             else:
                 self.articulation.set_qf(efforts)
         else:

@@ -16,7 +16,6 @@ step in a CUDA graph on physx_cuda (docs/gpu.md).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import NamedTuple
@@ -185,13 +184,16 @@ class FusedPhysicsStep:
         return physics_step_efforts(q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des, mass_hat, k_R, k_w,
                                     needs_yaw_sync, self.params, self.arm, arm_target, contact_mode)
 
-    def eager_efforts_in_place(self, q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des, *rest) -> tuple[torch.Tensor]:
-        """`eager_efforts` that writes the new controller memory into `xi` and `yaw_des` and returns the efforts
-        alone: what the 240 Hz loop runs on a CPU (two outputs fewer to hand out and copy at every physics step)."""
-        efforts, new_xi, new_yaw_des = self.eager_efforts(q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des, *rest)
+    def eager_efforts_in_place(self, efforts, q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des, *rest) -> tuple[()]:
+        """`eager_efforts` that writes its results into its inputs and returns nothing: the efforts into `efforts`
+        (an `(N, J)` buffer), the new controller memory into `xi` and `yaw_des`. What the 240 Hz loop runs on a CPU:
+        no output to allocate, hand out or convert at each physics step."""
+        new_efforts, new_xi, new_yaw_des = self.eager_efforts(q_all, qd_all, velocity_cmd, yaw_rate_cmd, xi, yaw_des,
+                                                              *rest)
+        efforts.copy_(new_efforts)
         xi.copy_(new_xi)
         yaw_des.copy_(new_yaw_des)
-        return (efforts,)
+        return ()
 
     @staticmethod
     def eager_airframe_state(q_all: torch.Tensor, qd_all: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -214,9 +216,11 @@ class FusedPhysicsStep:
         if mode is not ControllerMode.PAYLOAD_AWARE:
             return update_payload_estimate(memory, self.params, is_grasped, is_set_down, object_mass, mode)
         m = memory
-        new = self.kernels["payload"](*(m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w, m.grasp_steps, m.payload_active,
-                                          m.supported, is_grasped, is_set_down, object_mass))
-        return replace(memory, supported=is_set_down, **dict(zip(PAYLOAD_FIELDS, new)))
+        xi, mass_hat, k_R, k_w, grasp_steps, payload_active = self.kernels["payload"](*(  # PAYLOAD_FIELDS
+            m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w, m.grasp_steps, m.payload_active, m.supported, is_grasped,
+            is_set_down, object_mass))
+        # built directly (`dataclasses.replace` walks the fields: a few microseconds at every control step)
+        return FlightMemory(xi, m.yaw_des, mass_hat, k_R, k_w, grasp_steps, payload_active, supported=is_set_down)
 
     def efforts(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """`(efforts (N, J), xi, yaw_des)` from the whole articulation's `q_all, qd_all` and the other inputs."""
@@ -224,22 +228,25 @@ class FusedPhysicsStep:
 
     def efforts_loop(self, tensors: Sequence[torch.Tensor]) -> Callable[[list[torch.Tensor]], tuple[torch.Tensor, ...]]:
         """`efforts` for the 240 Hz loop, for inputs shaped like `tensors`, taking the input list. Where a CPU package
-        runs the step, it calls the package of `eager_efforts_in_place` itself: the new `xi` and `yaw_des` are
-        written into the input tensors, which it returns as the memory (the caller's memory tensors are updated in
-        place: they must be its own). About 5 us a call less than the kernel's wrapper and copies of the memory, at
-        12 calls per control step (docs/performance.md). The efforts it returns may be the package's buffer: use
-        them before the next call."""
+        runs the step, it calls the package of `eager_efforts_in_place` itself: the efforts go into one buffer of the
+        loop's own, returned at every call (the caller may keep a view of it, e.g. the numpy array PhysX takes), and
+        the new `xi` and `yaw_des` into the input tensors, which it returns as the memory (the caller's memory
+        tensors are updated in place: they must be its own). About 5 us a call less than the kernel's wrapper and
+        copies of its outputs, at 12 calls per control step (docs/performance.md). Without a package, or for a
+        strided input, the pure kernel's fresh outputs."""
         kernel = self.kernels["efforts_in_place"]
+        efforts = torch.zeros_like(tensors[0])  # (N, J), as q_all
         if kernel.aot_ok:
-            kernel(*[t.clone() for t in tensors])  # builds or loads the package (on copies: it writes its inputs)
-        run = kernel.package(*tensors)
+            kernel(efforts.clone(), *[t.clone() for t in tensors])  # builds or loads the package (on copies)
+        run = kernel.package(efforts, *tensors)
         if run is None:
             return lambda inputs: self.efforts(*inputs)
 
         def call(inputs: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
             if not all_contiguous(inputs):  # the package reads raw memory: the wrapper makes a contiguous copy
                 return self.efforts(*inputs)
-            return run(inputs)[0], inputs[4], inputs[5]
+            run([efforts, *inputs])
+            return efforts, inputs[4], inputs[5]
 
         return call
 

@@ -280,7 +280,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         self._grasp_streak[env_idx] = 0
         self.starts_held[env_idx] = False  # set by starts that put the object in the jaws (Place)
         self._episode_step[env_idx] = 0
-        self._gripper_command[env_idx] = 1.0
+        commanded = self._gripper_command.clone()  # a new tensor: a step context holds the one it read
+        commanded[env_idx] = 1.0
+        self._gripper_command = commanded
         self.init_failed[env_idx] = ~self._sample_episode(env_idx)
         if self.target is not None:  # where the object started: "knocked" (failure analysis) is measured from here
             if not hasattr(self, "_object_start_p") or self._object_start_p.shape[0] != n:
@@ -344,7 +346,6 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def step_context(self) -> StepContext:
         tensors, readout = self.signal_inputs()
-        grasp_link_pose = tensors[2]
         s = SharedSignals.from_flat(self._signals_kernel(*tensors))
         ctx = StepContext(
             state=AirframeState(s.position, s.velocity, s.rotation, s.angular_velocity_body),
@@ -354,9 +355,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             nontarget_force=s.nontarget_force,
             airframe_force=s.airframe_force,
             gripper_opening=s.gripper_opening,
-            gripper_command=self._gripper_command.clone(),
+            gripper_command=self._gripper_command,  # replaced, never written in place (`_step_action`, resets)
             tcp=s.tcp,
-            tcp_pose=Pose(raw_pose=torch.cat([s.tcp, grasp_link_pose[:, 3:]], 1)),  # the offset: a pure translation
+            tcp_pose=Pose(raw_pose=s.tcp_pose),
             opening_dirs=s.opening_dirs,
             signals=s,
         )

@@ -137,8 +137,8 @@ def test_a_compiled_call_keeps_nothing_alive_and_its_outputs_are_its_own(aot_cac
 
 def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_cache):
     """`efforts_loop`, what the body controller calls at every physics step after the first: the in-place package
-    itself where one runs, with the pure kernel's numbers, the new controller memory written into the memory tensors
-    it was given (and returned as they are); a non-contiguous input goes through the pure kernel's wrapper (the
+    itself where one runs, with the pure kernel's numbers, the efforts written into the loop's own buffer and the new
+    controller memory into the memory tensors it was given (both returned as they are); a non-contiguous input goes through the pure kernel's wrapper (the
     package reads raw memory); without a package, the pure kernel."""
     spec, tensors = _tensors("gripper", n=1)
     fingers = torch.randn(1, 2)
@@ -148,13 +148,16 @@ def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_c
     loop = step.efforts_loop(inputs)  # builds or loads the package (on copies: the inputs are untouched)
     assert all(torch.equal(a, b) for a, b in zip(inputs, before))
     assert step.kernels["efforts_in_place"].package(*inputs) is not None
+    buffers = []
     for command in (1.0, -1.0):  # two calls, the second with another velocity command and the memory it left
         inputs[2] = command * before[2]
         expected = step.efforts(*[t.clone() for t in inputs])
         looped = loop(inputs)
         assert looped[1] is inputs[4] and looped[2] is inputs[5]  # the memory, updated in place
+        buffers.append(looped[0])
         for a, b in zip(looped, expected):
             torch.testing.assert_close(a, b, rtol=1e-6, atol=1e-6)
+    assert buffers[0] is buffers[1]  # the efforts: written into the loop's own buffer at each call
     assert not torch.equal(inputs[4], before[4])  # the integrator moved
     strided = [t.clone() for t in inputs]
     strided[4] = torch.stack([inputs[4], inputs[4]], -1)[..., 0]  # xi, the same values in a strided view
