@@ -107,3 +107,25 @@ class AerialEnv(BaseEnv):
         signals = self.payload_signals()
         if signals is not None:
             self.agent.body_controller.update_payload(*signals)
+
+    def _flatten_raw_obs(self, obs):
+        # The "state" observation is a dict of dicts of `(N, ...)` tensors: one hstack of its leaves is what
+        # ManiSkill's `flatten_state_dict` makes of it (same order and dtype), without its per-level type checks,
+        # conversions and hstacks at every step. Anything else goes to ManiSkill.
+        if self._obs_mode == "state":
+            leaves = state_leaves(obs)
+            if leaves:
+                return torch.hstack(leaves)
+        return super()._flatten_raw_obs(obs)
+
+
+def state_leaves(obs: dict, leaves: list[torch.Tensor] | None = None) -> list[torch.Tensor] | None:
+    """The tensors of a nested state dict in insertion order, an `(N,)` one as `(N, 1)` (as `flatten_state_dict`
+    takes them), appended to `leaves`; None if it holds anything but tensors and dicts, or nothing at all."""
+    leaves = [] if leaves is None else leaves
+    for value in obs.values():
+        if isinstance(value, torch.Tensor):
+            leaves.append(value[:, None] if value.ndim == 1 else value)
+        elif not isinstance(value, dict) or state_leaves(value, leaves) is None:
+            return None
+    return leaves or None

@@ -1,10 +1,14 @@
 """What the step context reads on physx_cpu without ManiSkill's batched wrappers (the contact reader's one pass over
-PhysX's contact list, body poses from their SAPIEN entity) against ManiSkill's own queries."""
+PhysX's contact list, body poses from their SAPIEN entity) and the state observation flattened without ManiSkill's
+walk of the dict, against ManiSkill's own."""
 
 import gymnasium as gym
+import pytest
 import torch
+from mani_skill.utils import common
 
 import aerobench.envs  # noqa: F401
+from aerobench.envs.base_env import state_leaves
 from aerobench.envs.poses import pose_of
 from aerobench.policies import make_policy
 
@@ -60,3 +64,49 @@ def test_the_cpu_reader_gives_maniskills_finger_forces_from_a_fixtures_handle_pa
         compared += int(float(on_handle.norm(dim=-1).max()) > 0.5)  # a finger pushes a handle part: a real comparison
     env.close()
     assert compared >= 5, compared
+
+
+@pytest.mark.parametrize("env_id, kwargs", [("AeroFly-v1", {}), ("AeroPick-v1", {}), ("AeroPlace-v1", {}),
+                                            ("AeroPick-v1", {"setting": "TidyHouse", "platform": "arm"})])
+def test_the_state_observation_is_maniskills_flattening_of_the_same_dict(env_id, kwargs):
+    """`AerialEnv._flatten_raw_obs` hstacks the state dict's leaves itself: the same tensor, dtype and order as
+    ManiSkill's `flatten_state_dict`, over steps where the grasp and contact signals change."""
+    env = gym.make(env_id, num_envs=1, obs_mode="state", **kwargs)
+    base = env.unwrapped
+    obs, _ = env.reset(seed=1)
+    policy = make_policy("expert", base) if env_id != "AeroFly-v1" else None
+    if policy is not None:
+        policy.reset(torch.arange(1))
+    action = torch.zeros(1, base.platform.action_dim)
+    for _ in range(40):
+        obs, *_ = env.step(policy.act(obs) if policy is not None else action)
+        raw = base.get_obs(base.get_info(), unflattened=True)
+        reference = common.flatten_state_dict(raw, use_torch=True, device=base.device)
+        ours = base._flatten_raw_obs(raw)
+        assert ours.dtype == reference.dtype and torch.equal(ours, reference)
+        assert torch.equal(obs, ours)
+    env.close()
+
+
+def test_state_leaves_leaves_anything_but_tensors_to_maniskill():
+    t = torch.zeros(2, 3)
+    assert [x.shape for x in state_leaves({"a": {"b": t, "c": torch.ones(2)}, "d": t})] == [(2, 3), (2, 1), (2, 3)]
+    assert state_leaves({"a": {"b": t, "c": 1.0}}) is None
+    assert state_leaves({"a": {}}) is None
+
+
+def test_a_step_context_keeps_the_gripper_command_it_read_through_a_reset():
+    """The step context holds the env's gripper command tensor itself (no copy per step): the env replaces it and
+    never writes into it, so a context kept past a reset still says what was commanded."""
+    env = gym.make("AeroPick-v1", num_envs=1, obs_mode="state")
+    base = env.unwrapped
+    env.reset(seed=0)
+    close = torch.zeros(1, base.platform.action_dim)
+    close[:, -1] = -1.0
+    env.step(close)
+    ctx = base.current_step_context()
+    assert float(ctx.gripper_command[0]) == -1.0
+    env.reset(seed=1)
+    assert float(base.current_step_context().gripper_command[0]) == 1.0  # a reset opens the gripper
+    assert float(ctx.gripper_command[0]) == -1.0
+    env.close()
