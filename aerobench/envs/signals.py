@@ -19,8 +19,8 @@ from typing import NamedTuple
 import torch
 
 from .checks import SafetyLimits, consecutive, flight_envelope_flags, is_pinched, nontarget_contact_force, support_force
-from .control.so3 import quat_rotate, quat_wxyz_to_matrix
-from .control.virtual_joints import airframe_state_from_joints, joint_columns
+from .control.so3 import quat_rotate, quat_wxyz_to_matrix, tilt_angle
+from .control.virtual_joints import AirframeState, airframe_state_from_joints, joint_columns
 from .geometry import body_points_to_world, min_distance_to_boxes
 from .kernels import Kernel, shared_kernel
 from .observations import GRASP_CONFIRM_STEPS, proprio_state
@@ -104,6 +104,24 @@ def planned_grasp_point(position: torch.Tensor, R: torch.Tensor, tcp: torch.Tens
     return torch.where(grasps_rim[:, None], position + (R @ rim[..., None])[..., 0], point)
 
 
+def joint_parts(q: torch.Tensor, qd: torch.Tensor, virtual_joints: tuple[int, ...], finger_joints: tuple[int, int],
+                arm_joints: tuple[int, ...]) -> tuple[AirframeState, torch.Tensor, torch.Tensor, tuple[torch.Tensor, ...]]:
+    """The airframe state, the fingers' joint positions and velocities `(N, 2)` and the arm's `(q, qd)` (none on the
+    gripper platform) from the articulation's whole joint vectors `(N, J)`."""
+    virtual, fingers = joint_columns(virtual_joints, q.device), joint_columns(finger_joints, q.device)
+    arm = joint_columns(arm_joints, q.device) if arm_joints else None
+    arm_q = () if arm is None else (q[:, arm], qd[:, arm])
+    return airframe_state_from_joints(q[:, virtual], qd[:, virtual]), q[:, fingers], qd[:, fingers], arm_q
+
+
+def tool_centre_pose(grasp_link_pose: torch.Tensor, tcp_offset: tuple[float, float, float]) -> torch.Tensor:
+    """The tool centre point's pose `(N, 7)` (p, wxyz) from the grasp link's: the offset is a pure translation in the
+    link's frame, so the link's orientation is kept."""
+    link_p, link_q = grasp_link_pose[:, :3], grasp_link_pose[:, 3:]
+    offset = torch.tensor(tcp_offset, dtype=link_p.dtype, device=link_p.device)
+    return torch.cat([link_p + quat_rotate(link_q, offset), link_q], -1)
+
+
 def shared_signals(
     q: torch.Tensor,
     qd: torch.Tensor,
@@ -129,15 +147,10 @@ def shared_signals(
     its pose at the episode's start (position `(N, 3)`, wxyz `(N, 4)`), and the grasp streak so far `(N,)`, whether
     the episode started with the object in the jaws `(N,)` and the episode's control step `(N,)`.
     """
-    virtual, fingers = joint_columns(const.virtual_joints, q.device), joint_columns(const.finger_joints, q.device)
-    q_v, qd_v, finger_q, finger_qd = q[:, virtual], qd[:, virtual], q[:, fingers], qd[:, fingers]
-    arm = joint_columns(const.arm_joints, q.device) if const.arm_joints else None
-    arm_q = () if arm is None else (q[:, arm], qd[:, arm])
-    state = airframe_state_from_joints(q_v, qd_v)
+    state, finger_q, finger_qd, arm_q = joint_parts(q, qd, const.virtual_joints, const.finger_joints, const.arm_joints)
     position, rotation = state.position, state.rotation
-    link_p, link_q = grasp_link_pose[:, :3], grasp_link_pose[:, 3:]
-    # the offset is a pure translation: rotate it, keep the link's orientation
-    tcp = link_p + quat_rotate(link_q, torch.tensor(const.tcp_offset, dtype=link_p.dtype, device=link_p.device))
+    tcp_pose = tool_centre_pose(grasp_link_pose, const.tcp_offset)
+    tcp = tcp_pose[:, :3]
     e_y = torch.tensor([0.0, 1.0, 0.0], dtype=finger_quats.dtype, device=finger_quats.device)  # fingers close along y
     opening_dirs = torch.stack([quat_rotate(finger_quats[:, 0], e_y), -1.0 * quat_rotate(finger_quats[:, 1], e_y)], 1)
     omega_world = (rotation @ state.angular_velocity_body[..., None])[..., 0]
@@ -149,14 +162,14 @@ def shared_signals(
         rotation=rotation,
         angular_velocity_body=state.angular_velocity_body,
         tcp=tcp,
-        tcp_pose=torch.cat([tcp, link_q], -1),
+        tcp_pose=tcp_pose,
         opening_dirs=opening_dirs,
-        speed=torch.linalg.norm(qd_v[:, :3], dim=-1),
+        speed=torch.linalg.norm(state.velocity, dim=-1),
         angular_speed=torch.linalg.norm(omega_world, dim=-1),
         nontarget_force=nontarget_contact_force(link_forces, list(const.finger_idx), finger_on_target),
         airframe_force=torch.linalg.norm(link_forces[:, const.airframe_idx], dim=-1),
         gripper_opening=finger_q[:, 0] + finger_q[:, 1],
-        tilt=torch.acos(torch.clamp(rotation[:, 2, 2], -1.0, 1.0)),
+        tilt=tilt_angle(rotation),
         altitude=position[:, 2] - workspace_lo[:, 2],
         tilt_rate=torch.linalg.norm(state.angular_velocity_body[:, :2], dim=-1),
         clearance=min_distance_to_boxes(points, boxes) - const.proxy_radius,
@@ -208,3 +221,43 @@ def signals_kernel(const: SignalConstants, device: torch.device | str, compile: 
     kind of env): call it with the tensors of `shared_signals`; `SharedSignals.from_flat` reads what it returns."""
     return shared_kernel(partial(_flat_signals, const=const), "shared_signals", const, _SOURCES, device, compile,
                          dynamic={BOXES_INPUT: 1})
+
+
+class FlightSignalConstants(NamedTuple):
+    """What `flight_signals` needs of the flight-test env besides tensors (hashable: a compiled kernel's key)."""
+
+    tcp_offset: tuple[float, float, float]
+    virtual_joints: tuple[int, ...]
+    finger_joints: tuple[int, int]
+    arm_joints: tuple[int, ...]
+
+
+class FlightSignals(NamedTuple):
+    """`(N, ...)` tensors: what the flight-test env (`AeroFly-v1`) reports and observes at a step."""
+
+    altitude: torch.Tensor  # airframe centre height above the world origin
+    tilt: torch.Tensor
+    speed: torch.Tensor
+    velocity: torch.Tensor  # (N, 3)
+    proprio: torch.Tensor  # the policy-facing proprioceptive state (`observations.proprio_state`)
+    tcp_pose: torch.Tensor  # (N, 7) p, wxyz
+
+
+def flight_signals(q: torch.Tensor, qd: torch.Tensor, grasp_link_pose: torch.Tensor, *,
+                   const: FlightSignalConstants) -> FlightSignals:
+    """The flight-test env's signals from the articulation's joint vectors `(N, J)` and the grasp link's pose."""
+    state, finger_q, finger_qd, arm_q = joint_parts(q, qd, const.virtual_joints, const.finger_joints, const.arm_joints)
+    return FlightSignals(altitude=state.position[:, 2], tilt=tilt_angle(state.rotation),
+                         speed=torch.linalg.norm(state.velocity, dim=-1), velocity=state.velocity,
+                         proprio=proprio_state(state, finger_q, finger_qd, *arm_q),
+                         tcp_pose=tool_centre_pose(grasp_link_pose, const.tcp_offset))
+
+
+def _flat_flight_signals(*tensors: torch.Tensor, const: FlightSignalConstants) -> tuple[torch.Tensor, ...]:
+    return tuple(flight_signals(*tensors, const=const))
+
+
+def flight_signals_kernel(const: FlightSignalConstants, device: torch.device | str,
+                          compile: bool | None = None) -> Kernel:
+    """The process's one `flight_signals` kernel for `const` on `device`; `FlightSignals(*kernel(q, qd, pose))`."""
+    return shared_kernel(partial(_flat_flight_signals, const=const), "flight_signals", const, _SOURCES, device, compile)

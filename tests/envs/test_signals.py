@@ -9,7 +9,7 @@ import aerobench.envs  # noqa: F401
 from aerobench.envs.geometry import body_points_to_world, min_distance_to_boxes
 from aerobench.envs.kernels import Kernel
 from aerobench.envs.observations import GRASP_CONFIRM_STEPS
-from aerobench.envs.signals import BOXES_INPUT, SharedSignals, signals_kernel
+from aerobench.envs.signals import BOXES_INPUT, FlightSignals, SharedSignals, signals_kernel
 from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
 
@@ -133,4 +133,39 @@ def test_the_grasp_streak_counts_grasped_steps_and_confirms_a_held_start():
     assert streak(0, held=True, step=GRASP_CONFIRM_STEPS) == 1  # ... only over its first steps
     assert streak(0, held=True, step=0, grasped=False) == GRASP_CONFIRM_STEPS
     assert int(base._grasp_streak[0]) >= 1  # the env keeps the signal: the expert holds the object here
+    env.close()
+
+
+@pytest.mark.parametrize("platform", ["gripper", "arm"])
+def test_the_flight_test_envs_signals_are_the_agents_own_queries(platform):
+    """`AeroFly-v1` reports and observes `signals.flight_signals` (one compiled call outside the tests): the same
+    numbers as the agent's airframe state, proprioception and TCP pose while the airframe climbs, turns and tilts; no
+    host sync; compiled, the eager numbers."""
+    env = gym.make("AeroFly-v1", num_envs=1, obs_mode="state", platform=platform)
+    base, agent = env.unwrapped, env.unwrapped.agent
+    env.reset(seed=0)
+    action = torch.zeros(1, base.platform.action_dim)
+    action[:, :4] = torch.tensor([0.6, -0.3, 0.4, 0.5])
+    for step in range(30):
+        obs, _, _, _, info = env.step(action)
+        if step % 10:
+            continue
+        state = agent.airframe_state()
+        torch.testing.assert_close(info["altitude"], state.position[:, 2])
+        torch.testing.assert_close(info["speed"], torch.linalg.norm(state.velocity, dim=-1))
+        torch.testing.assert_close(info["tilt"], torch.acos(state.rotation[:, 2, 2].clamp(-1, 1)), rtol=1e-5, atol=1e-4)
+        raw = base.get_obs(unflattened=True)
+        torch.testing.assert_close(raw["agent"]["state"], agent.get_proprioception(state)["state"], rtol=1e-5,
+                                   atol=1e-5)
+        torch.testing.assert_close(raw["extra"]["tcp_pose"], agent.tcp_pose.raw_pose, rtol=1e-5, atol=1e-6)
+        torch.testing.assert_close(raw["extra"]["airframe_velocity"], state.velocity)
+    assert float(info["speed"][0]) > 0.2 and float(info["tilt"][0]) > 0.003  # it flew: a real comparison
+    inputs = (*agent.joint_state(), agent.tcp_pose.raw_pose)
+    eager = base._flight_kernel.fn
+    with NoHostSync():
+        reference = eager(*inputs)
+    if platform == "gripper":  # compiled ahead of time, as by default outside the tests: the eager numbers
+        compiled = Kernel(eager, "flight_signals", "test", [], "cpu", compile=True)(*inputs)
+        for name, a, b in zip(FlightSignals._fields, compiled, reference):
+            torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-4, msg=name)
     env.close()
