@@ -9,7 +9,7 @@ from mani_skill.utils import common
 
 import aerobench.envs  # noqa: F401
 from aerobench.envs.base_env import state_leaves
-from aerobench.envs.poses import pose_of
+from aerobench.envs.poses import pose_of, raw_quats_of
 from aerobench.policies import make_policy
 
 
@@ -35,6 +35,8 @@ def test_the_cpu_reader_gives_maniskills_per_pair_and_net_forces_while_an_object
         torch.testing.assert_close(readout.link_forces, links, rtol=1e-5, atol=1e-4)
         for body in (*base.agent.finger_links, base.agent.grasp_link, target):
             assert torch.equal(pose_of(body).raw_pose, body.pose.raw_pose)
+        fingers = base.agent.finger_links
+        assert torch.equal(raw_quats_of(fingers), torch.stack([f.pose.q for f in fingers], 1))
         compared += 1
     # the reader keeps the route of each body pair it met: a pair is the same two wrappers at every step, so the
     # memo holds the few pairs that touched, not one entry per step
