@@ -44,6 +44,7 @@ class AeroFlyEnv(AerialEnv):
     SUPPORTED_REWARD_MODES = ("none",)
     _obs_signals: FlightSignals | None = None  # the step's signals while an observation is assembled
     _flight_kernel: Kernel | None = None  # `signals.flight_signals`, compiled (made at the first read)
+    _evaluated: FlightSignals | None = None  # the signals of the last `evaluate()`
 
     def __init__(
         self,
@@ -185,7 +186,7 @@ class AeroFlyEnv(AerialEnv):
         return FlightSignals(*self._flight_kernel(q, qd, raw_pose_of(self.agent.grasp_link)))
 
     def evaluate(self) -> dict:
-        s = self.flight_signals()
+        s = self._evaluated = self.flight_signals()
         info = {"altitude": s.altitude, "tilt": s.tilt, "speed": s.speed}
         if self.payload is not None:
             info["is_grasped"] = self.agent.is_grasping(self.payload)
@@ -193,8 +194,11 @@ class AeroFlyEnv(AerialEnv):
         return info
 
     def get_obs(self, info: dict | None = None, unflattened: bool = False):
-        # the agent's and the extra observation come from the same signals: computed once per observation
-        self._obs_signals = self.flight_signals()
+        # the agent's and the extra observation come from the same signals: those of the info given, where it is the
+        # last evaluation's (as `step` and `reset` pass it), else read now
+        last = self._evaluated
+        given = info is not None and last is not None and info.get("altitude") is last.altitude
+        self._obs_signals = last if given else self.flight_signals()
         try:
             return super().get_obs(info, unflattened)
         finally:

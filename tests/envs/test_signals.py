@@ -160,6 +160,15 @@ def test_the_flight_test_envs_signals_are_the_agents_own_queries(platform):
         torch.testing.assert_close(raw["extra"]["tcp_pose"], agent.tcp_pose.raw_pose, rtol=1e-5, atol=1e-6)
         torch.testing.assert_close(raw["extra"]["airframe_velocity"], state.velocity)
     assert float(info["speed"][0]) > 0.2 and float(info["tilt"][0]) > 0.003  # it flew: a real comparison
+    reads = []
+    base.flight_signals = lambda: reads.append(1) or type(base).flight_signals(base)
+    obs, *_ = env.step(action)  # one read a step: the observation takes the signals of the step's info
+    assert len(reads) == 1 and torch.equal(obs, base._flatten_raw_obs(base.get_obs(unflattened=True)))
+    del base.flight_signals
+    q = agent.robot.get_qpos().clone()
+    q[:, 2] += 0.5
+    agent.robot.set_qpos(q)  # moved without an evaluation: an observation without info reads the joints again
+    torch.testing.assert_close(base.get_obs(unflattened=True)["agent"]["state"], agent.get_proprioception()["state"])
     inputs = (*agent.joint_state(), agent.tcp_pose.raw_pose)
     eager = base._flight_kernel.fn
     with NoHostSync():
