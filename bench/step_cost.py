@@ -6,7 +6,8 @@ own episode replayed (the efforts and gripper targets it recorded, so the same s
 (b) ManiSkill's PickCube-v1, state, as a reference (against its own bare physics steps); (c)
 AeroFly-v1; (d) AeroPick-v1 and AeroPlace-v1, state, hovering and with the privileged expert acting; (e) the same
 Pick env with the three 128x128 RGB-D cameras (lavapipe's cost: reported, kept out of the ratios). Each aerobench
-row's ratios are to the bare steps of its own scene. Then expert Pick episodes per minute on one core, and `aerobench
+row's ratios are to the bare steps of its own scene; with `--repeats`, the row's episode and its replay are timed in
+turn, the minimum of each kept. Then expert Pick episodes per minute on one core, and `aerobench
 train ppo` env steps per second (Pick, from scratch, the spec's 64-step windows) with K = 1 env and with K = 2
 worker processes (physx_cpu runs one env per process).
 
@@ -62,12 +63,10 @@ def bare_physics_ms(base, steps: int) -> float:
     return per_step_ms(bare, steps)
 
 
-def replayed_physics_ms(env, expert: bool, hover: torch.Tensor, steps: int) -> tuple[float, float]:
-    """(ms per control step, max joint deviation): the row's episode (`episode_ms`), its 12 PhysX steps per control
-    step replayed alone. A first run records the efforts the controller applied at every physics step and the
-    gripper's drive targets; the replay resets to the same start and steps PhysX with them, timing only the physics
-    steps (and their `set_qf`). It follows the recorded episode (the deviation of its final joints says how closely):
-    the bare step of the same scene in the same states, awake or asleep as they were."""
+def record_episode(env, expert: bool, hover: torch.Tensor, steps: int) -> tuple[list, list, object]:
+    """The row's episode run once, untimed (it also compiles and warms the caches): the efforts the controller applied
+    at every physics step, the gripper's drive targets at every control step and the final joint positions, for
+    `replayed_physics_ms`."""
     base = env.unwrapped
     obs, _ = env.reset(seed=SEED)
     policy = make_policy("expert", base) if expert else None
@@ -91,7 +90,16 @@ def replayed_physics_ms(env, expert: bool, hover: torch.Tensor, steps: int) -> t
                 break
     finally:
         del controller.before_simulation_step
-    final = articulation.get_qpos().copy()
+    return efforts, targets, articulation.get_qpos().copy()
+
+
+def replayed_physics_ms(env, recorded: tuple[list, list, object]) -> tuple[float, float]:
+    """(ms per control step, max joint deviation): the recorded episode (`record_episode`), its 12 PhysX steps per
+    control step replayed alone from the same start with the recorded efforts and gripper targets, timing only the
+    physics steps (and their `set_qf`). It follows the recorded episode (the deviation of its final joints says how
+    closely): the bare step of the same scene in the same states, awake or asleep as they were."""
+    efforts, targets, final = recorded
+    base = env.unwrapped
     env.reset(seed=SEED)
     articulation, px = base.agent.body_controller._cpu_articulation, base.scene.px  # the reset rebuilt the scene
     spent = 0.0
@@ -127,22 +135,27 @@ def episode_ms(env, expert: bool, hover: torch.Tensor, max_steps: int) -> float:
 
 def aero_rows(env_id: str, steps: int, expert: bool, **kwargs) -> tuple[float, float, float, float]:
     """(ms per control step, ms per bare step of the same scene at rest, ms per replayed bare step of the same
-    episode, the replay's deviation). With the expert, one whole episode (timed `REPEATS` times after one untimed run,
-    the minimum kept); hovering, `steps` control steps."""
+    episode, the replay's deviation). With the expert, one whole episode; hovering, `steps` control steps. After one
+    untimed run that records the episode, the episode and its replay are timed in turn `REPEATS` times (so a change
+    in the machine's load reaches both), the minimum of each kept."""
     env = gym.make(env_id, num_envs=1, **kwargs)
     env.reset(seed=SEED, options={"reconfigure": True})
     base = env.unwrapped
     hover = torch.zeros(1, base.platform.action_dim)
     hover[:, -1] = -1.0 if env_id == "AeroPlace-v1" else 1.0  # Place starts holding the object: keep it
     max_steps = gym.spec(env_id).max_episode_steps if expert else steps
-    episode_ms(env, expert, hover, max_steps if expert else 5)  # compiles, warms the caches
-    t_ours = min(episode_ms(env, expert, hover, max_steps) for _ in range(REPEATS))
+    cpu = not base.scene.gpu_sim_enabled  # the replay reads and writes the one PhysX articulation of physx_cpu
+    recorded = record_episode(env, expert, hover, max_steps) if cpu else None
+    t_ours = t_replay = float("inf")
+    deviation = float("nan")
+    for _ in range(REPEATS):
+        t_ours = min(t_ours, episode_ms(env, expert, hover, max_steps))
+        if cpu:
+            replay, deviation = replayed_physics_ms(env, recorded)
+            t_replay = min(t_replay, replay)
     t_bare = bare_physics_ms(base, steps)
-    t_replay, deviation = (float("nan"),) * 2
-    if not base.scene.gpu_sim_enabled:  # the replay reads and writes the one PhysX articulation of physx_cpu
-        t_replay, deviation = replayed_physics_ms(env, expert, hover, max_steps)
     env.close()
-    return t_ours, t_bare, t_replay, deviation
+    return t_ours, t_bare, t_replay if cpu else float("nan"), deviation
 
 
 def maniskill_reference_ms(steps: int) -> tuple[float, float]:
