@@ -48,6 +48,7 @@ class SkillExpert:
         # heading loop keeps it from ringing (the gripper platform turns fast enough for the default).
         self.yaw_gain, self.max_yaw_rate = (ARM_YAW_GAIN, ARM_MAX_YAW_RATE) if self.has_arm else (YAW_GAIN, MAX_YAW_RATE_RPS)
         self.velocity_command = torch.zeros(self.n, 3, device=self.device)  # the last commanded velocity (m/s)
+        self._no_droop = torch.zeros(self.n, dtype=torch.bool, device=self.device)  # the gripper platform's, every step
 
     def reset(self, env_idx: torch.Tensor) -> None:
         self.phase[env_idx] = 0
@@ -82,7 +83,7 @@ class SkillExpert:
         elbow's static torque with the object at the grasp point exceeds its limit (a reach-in's level forearm holds
         0.28 kg; the 0.37-0.41 kg cans droop it 0.6-0.9 rad as they come off the shelf)."""
         if not self.has_arm:
-            return torch.zeros(self.n, dtype=torch.bool, device=self.device)
+            return self._no_droop
         torque = elbow_gravity_torque(self.pick_arm_pose(pick), self.arm_params, self.env.target_mass)
         return torque > self.arm_params.torque_limit[ELBOW]
 

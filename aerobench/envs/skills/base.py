@@ -257,6 +257,10 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         )
         self._signals_kernel = signals_kernel(const, self.device)  # one per process and kind of env: compiled once
         self._verdicts: dict[tuple[int, ...], Kernel] = {}  # `checks.verdict` kernels by the causes flagged
+        # constants read at every control step, made once: evaluator 0's index (a single-skill env's subtask) and
+        # "not set down" (the payload switch's input where no evaluator reports a set-down)
+        self._evaluator_zero = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+        self._not_set_down = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
 
     def _handle_links(self) -> list:
         """Fixture links whose handles the fingers may pinch (Open/Close)."""
@@ -302,8 +306,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         raise NotImplementedError
 
     def active_evaluator_index(self) -> torch.Tensor:
-        """Which evaluator scores each env now, `(N,)`; a single-skill env always uses evaluator 0."""
-        return torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+        """Which evaluator scores each env now, `(N,)`; a single-skill env always uses evaluator 0 (one tensor of the
+        env's, handed out at every step: read it, do not write into it)."""
+        return self._evaluator_zero
 
     def evaluator_masks(self, active: torch.Tensor) -> list[tuple[SkillEvaluator, torch.Tensor | None]]:
         """Each evaluator with the mask `(N,)` of the envs it scores now (`active`: `active_evaluator_index()`), or
@@ -479,7 +484,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         if self.target is None:
             return None
         info = self.evaluate()
-        return info["is_grasped"], info.get("is_set_down", torch.zeros_like(info["is_grasped"])), self.target_mass
+        return info["is_grasped"], info.get("is_set_down", self._not_set_down), self.target_mass
 
     def _before_control_step(self):
         super()._before_control_step()
