@@ -185,6 +185,14 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
     assert float(out.split("AeroPick-v1 reset with a new layout: ")[1].split(" ms")[0]) > 0
 
 
+def test_step_cost_times_the_ppo_env_counts_in_turn_and_keeps_the_best_of_each(monkeypatch):
+    """A load change between two K's runs must reach every K alike: rounds of K = 1, 2, 4 in turn, the best kept."""
+    calls, rates = [], iter([100.0, 150.0, 160.0, 80.0, 190.0, 150.0, 90.0, 170.0, 155.0])
+    monkeypatch.setattr(step_cost, "ppo_steps_per_second", lambda k, windows: calls.append((k, windows)) or next(rates))
+    assert step_cost.ppo_rates([1, 2, 4], windows=3, repeats=3) == {1: 100.0, 2: 190.0, 4: 160.0}
+    assert calls == [(1, 3), (2, 3), (4, 3)] * 3
+
+
 def test_scale_prints_the_rate_of_one_and_two_ray_workers(tmp_path):
     """`bench/scale.py` on a local Ray runtime: both rows measured, the ratio consistent with them."""
     r = subprocess.run([sys.executable, str(BENCH / "scale.py"), "--episodes", "2"], capture_output=True, text=True,
