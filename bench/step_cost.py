@@ -291,12 +291,12 @@ def main() -> None:
           f"{steps} control steps)")
     if args.ppo_windows >= 2:
         rates = ppo_rates([1, *args.ppo_envs], args.ppo_windows, REPEATS)
-        best = f", the best of {REPEATS} runs in turn" if REPEATS > 1 else ""
+        how = f", the best of {REPEATS} runs in turn" if REPEATS > 1 else ""
         one = rates[1]
-        print(f"train ppo env steps per second{best}: K=1 {one:.1f}")
+        print(f"train ppo env steps per second{how}: K=1 {one:.1f}")
         for k in args.ppo_envs:
             sps = rates[k]
-            print(f"train ppo env steps per second{best}: K={k} worker processes {sps:.1f} ({sps / one:.2f}x of K=1"
+            print(f"train ppo env steps per second{how}: K={k} worker processes {sps:.1f} ({sps / one:.2f}x of K=1"
                   + ("; goal >= 1.8x on 2 cores)" if k == 2 else ")"), flush=True)
 
 
