@@ -9,10 +9,11 @@ Pick env with the three 128x128 RGB-D cameras (lavapipe's cost: reported, kept o
 row's ratios are to the bare steps of its own scene; with `--repeats`, the row's episode and its replay are timed in
 turn, the minimum of each kept. Then expert Pick episodes per minute on one core, and `aerobench
 train ppo` env steps per second (Pick, from scratch, the spec's 64-step windows) with K = 1 env and with K = 2
-worker processes (physx_cpu runs one env per process); with `--repeats`, the K's run in turn and the best of each is
+worker processes (physx_cpu runs one env per process), the K's in turn for `--ppo-repeats` rounds, the best of each
 kept.
 
     python bench/step_cost.py [--steps 100] [--episodes 5] [--ppo-windows 3] [--ppo-envs 2] [--no-cameras] [--repeats 1]
+                              [--ppo-repeats 3]
 """
 
 from __future__ import annotations
@@ -256,6 +257,9 @@ def main() -> None:
     parser.add_argument("--no-cameras", action="store_true", help="skip the rendered row (e)")
     parser.add_argument("--repeats", type=int, default=1,
                         help="time each row this many times and report the minimum (on a shared machine)")
+    parser.add_argument("--ppo-repeats", type=int, default=3,
+                        help="rounds of the PPO rows, the K's in turn, the best rate of each kept (one round's two "
+                             "timed windows once read K = 2 at 0.63x of K = 1 on a busy host)")
     args = parser.parse_args()
     global REPEATS
     REPEATS = max(1, args.repeats)
@@ -289,8 +293,9 @@ def main() -> None:
     print(f"expert Pick episodes per minute on one core: {rate:.1f} ({successes}/{args.episodes} successful, "
           f"{steps} control steps)")
     if args.ppo_windows >= 2:
-        rates = ppo_rates([1, *args.ppo_envs], args.ppo_windows, REPEATS)
-        how = f", the best of {REPEATS} runs in turn" if REPEATS > 1 else ""
+        rounds = max(1, args.ppo_repeats)
+        rates = ppo_rates([1, *args.ppo_envs], args.ppo_windows, rounds)
+        how = f", the best of {rounds} runs in turn" if rounds > 1 else ""
         one = rates[1]
         print(f"train ppo env steps per second{how}: K=1 {one:.1f}")
         for k in args.ppo_envs:

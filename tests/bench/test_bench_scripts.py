@@ -169,7 +169,12 @@ def test_bc_inputs_bench_trains_and_scores_each_variant_once(tmp_path):
 
 def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["step_cost.py", "--steps", "3", "--episodes", "1", "--no-cameras",
-                                      "--ppo-windows", "0", "--repeats", "2"])
+                                      "--ppo-windows", "2", "--repeats", "2"])
+    # the PPO rows' training is a stand-in here (test_train_ppo runs the real one): what is checked is that they take
+    # the best of three rounds in turn by default, whatever `--repeats` the rows above use
+    ppo_calls, ppo_rates = [], iter([100.0, 90.0, 120.0, 230.0, 110.0, 200.0])
+    monkeypatch.setattr(step_cost, "ppo_steps_per_second",
+                        lambda k, windows: ppo_calls.append((k, windows)) or next(ppo_rates))
     step_cost.main()
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.startswith("(")]
@@ -183,6 +188,9 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
         assert deviation <= 1e-5  # the replay followed the row's episode: the same states stepped bare
     assert "expert Pick episodes per minute on one core" in out and "(1/1 successful" in out
     assert float(out.split("AeroPick-v1 reset with a new layout: ")[1].split(" ms")[0]) > 0
+    assert ppo_calls == [(1, 2), (2, 2)] * 3
+    assert "the best of 3 runs in turn: K=1 120.0" in out
+    assert "the best of 3 runs in turn: K=2 worker processes 230.0 (1.92x of K=1" in out
 
 
 def test_step_cost_times_the_ppo_env_counts_in_turn_and_keeps_the_best_of_each(monkeypatch):
