@@ -170,8 +170,8 @@ def test_bc_inputs_bench_trains_and_scores_each_variant_once(tmp_path):
 def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["step_cost.py", "--steps", "3", "--episodes", "1", "--no-cameras",
                                       "--ppo-windows", "2", "--repeats", "2"])
-    # the PPO rows' training is a stand-in here (test_train_ppo runs the real one): what is checked is that they take
-    # the best of three rounds in turn by default, whatever `--repeats` the rows above use
+    # the PPO rows' training is a stand-in here (tests/train/test_ppo.py runs the real one): what is checked is that
+    # they take the best of three rounds in turn by default, whatever `--repeats` the rows above use
     ppo_calls, ppo_rates = [], iter([100.0, 90.0, 120.0, 230.0, 110.0, 200.0])
     monkeypatch.setattr(step_cost, "ppo_steps_per_second",
                         lambda k, windows: ppo_calls.append((k, windows)) or next(ppo_rates))
