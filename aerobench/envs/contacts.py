@@ -142,5 +142,6 @@ class ContactReader:
         forces = (self._routing() @ totals / self._dt).astype(np.float32)[None]
         n = len(self.link_names)
         on_target, on_handle = n + self.ON_TARGET, n + self.ON_HANDLE
-        return ContactReadout(*map(torch.from_numpy, (forces[:, :n], forces[:, on_target : on_target + 2],
-                                                      forces[:, n + self.TARGET_NET], forces[:, on_handle : on_handle + 2])))
+        fields = (forces[:, :n], forces[:, on_target : on_target + 2], forces[:, n + self.TARGET_NET],
+                  forces[:, on_handle : on_handle + 2])
+        return ContactReadout(*map(torch.from_numpy, fields))
