@@ -17,6 +17,7 @@ BENCH = Path(__file__).resolve().parents[2] / "bench"
 sys.path.insert(0, str(BENCH))
 
 import bc_inputs  # noqa: E402
+import call_warmth  # noqa: E402
 import descent_onset  # noqa: E402
 import diversity  # noqa: E402
 import learning_curves  # noqa: E402
@@ -68,6 +69,9 @@ def test_bad_flags_are_one_line_errors(capsys):
     with pytest.raises(SystemExit):
         learning_curves.parse_budget(["--objects", "anvil"])
     assert "valid objects" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        call_warmth.main(["--gaps", "0,ten", "--no-env"])
+    assert "comma-separated microseconds" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
@@ -315,3 +319,26 @@ def test_step_floor_prints_each_variant_and_the_floor_against_the_bare_step(caps
     ms, ratio = float(floor_line.split()[-3]), float(floor_line.split()[-1].rstrip("x"))
     floor = step_floor.floor_ms(row)
     assert ms == pytest.approx(floor, abs=1e-3) and ratio == pytest.approx(floor / row[step_floor.BARE], abs=0.01)
+
+
+def test_call_warmth_times_each_call_after_each_gap_and_the_hook_both_ways(capsys):
+    result = call_warmth.main(["--gaps", "0,30", "--calls", "40"])
+    assert list(result["gaps"]) == ["torch add", "numpy add"]
+    for hot, row in result["gaps"].values():
+        assert hot > 0 and list(row) == [0.0, 30.0]
+        assert all(us > 0 and 0.0 <= cold <= 1.0 for us, cold in row.values())
+    hook = result["hook"]
+    assert list(hook) == ["hook, back to back", "hook, after a physics step", "physics step, after the hook",
+                          "physics step, efforts held"]
+    assert all(us > 0 for us in hook.values())
+    out = capsys.readouterr().out
+    assert out.count(" us: ") == 4  # one cell per gap in each add's row
+    ratio = float(out.strip().splitlines()[-1].split()[-1].rstrip("x"))
+    assert ratio == pytest.approx(hook["hook, after a physics step"] / hook["hook, back to back"], abs=0.01)
+
+
+def test_busy_wait_waits_at_least_the_gap():
+    import time
+    t0 = time.perf_counter()
+    call_warmth.busy_wait(2000)
+    assert time.perf_counter() - t0 >= 2e-3
