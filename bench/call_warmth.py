@@ -7,7 +7,7 @@ call that has not run for some microseconds pays a fixed extra cost, whatever ra
 that, in one run, one thread:
 
 - a one-element in-place torch add and numpy add, each timed right after a busy wait of `gap` microseconds in pure
-  Python (no memory touched, no other library called): the median, and the share of calls slower than twice the
+  Python (a loop on `time.perf_counter` and nothing else): the median, and the share of calls slower than twice the
   back-to-back median ("cold");
 - the 240 Hz hook of `AeroFly-v1` (joint reads, one compiled call, `set_qf`), hovering: called back to back, and
   called between physics steps as it runs in a control step; the PhysX step after the hook, and after only the
