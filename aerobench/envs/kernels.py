@@ -32,7 +32,13 @@ import torch
 log = logging.getLogger(__name__)
 # Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
 # in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
-INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
+# One thread in the generated C++: inductor otherwise writes the building process's torch thread count into the code
+# (`#pragma omp parallel num_threads(n)`), and every call of such a kernel starts a team of n threads even in a
+# one-thread process. A package built by a two-thread process (`aerobench demo`) and then run by K rollout workers,
+# one per core, had their spinning OpenMP threads take the cores from each other: PPO with K = 2 at 0.56x K = 1 in
+# `make bench` (docs/performance.md). These kernels work on a batch of one env on a CPU: a team has nothing to share.
+CPU_CODEGEN = {"cpp.vec_isa_ok": True, "cpp.threads": 1}
+INDUCTOR_OPTIONS = {**CPU_CODEGEN, "cpp_wrapper": True}
 # An AOTInductor package is C++ throughout. A kernel is a few hundred flops on small tensors, so what a call costs is
 # its bookkeeping: a tensor per buffer and an ATen call per small matmul. The small matmuls are decomposed into the
 # fused kernel (inductor's own pass: on a CPU it applies to a batch of one, physx_cpu's N). Where the buffers live is
@@ -47,7 +53,7 @@ INDUCTOR_OPTIONS = {"cpp.vec_isa_ok": True, "cpp_wrapper": True}
 # alive through the Python runner (30 MB per 100k calls); tests/envs/control/test_fused.py and tests/envs/test_kernels.py
 # check that a call leaves nothing behind and that outputs do not alias.
 AOT_INDUCTOR_OPTIONS = {
-    "cpp.vec_isa_ok": True,
+    **CPU_CODEGEN,
     "post_grad_fusion_options": {"decompose_mm_pass": {}},
 }
 STACK_ALLOCATION = {"aot_inductor.allow_stack_allocation": True}

@@ -85,3 +85,29 @@ def test_a_loaded_package_leaves_no_extracted_files_behind(aot_cache):
     packages = [path for path in mapped if "/data/aotinductor/model/" in path]
     assert packages  # the package's library is mapped ...
     assert not [path for path in packages if Path(path).exists()]  # ... and its extracted files are gone
+
+
+def _elementwise(x: torch.Tensor) -> tuple[torch.Tensor]:
+    return (torch.sin(x) * 2 + 1,)
+
+
+def test_a_package_is_single_threaded_whatever_the_building_process_runs(aot_cache):
+    """A package built by a process with two torch threads has no OpenMP team in it: inductor would otherwise write
+    the builder's thread count into the code, and every call of it, in any process, would start that many threads
+    (K one-thread rollout workers on K cores then took the cores from each other)."""
+    import zipfile
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        kernel = Kernel(_elementwise, "test_threads", ("elementwise",), [], "cpu", compile=True)
+        x = torch.randn(512, 512)  # large enough that inductor splits the loop across a team when it may
+        torch.testing.assert_close(kernel(x)[0], _elementwise(x)[0])
+        assert kernel.backend == "compiled ahead of time", kernel.backend
+    finally:
+        torch.set_num_threads(old)
+    packages = list((aot_cache / "test_threads").glob("*.pt2"))
+    assert len(packages) == 1
+    with zipfile.ZipFile(packages[0]) as package:
+        sources = [package.read(name).decode() for name in package.namelist() if name.endswith(".cpp")]
+    assert sources and not any("#pragma omp parallel" in source for source in sources)
