@@ -83,7 +83,9 @@ def hook_row(n: int) -> dict[str, float]:
     hover[:, -1] = 1.0
     for _ in range(20):  # lift-off transients out, the compiled package loaded
         env.step(hover)
-    hook, px = base.agent.body_controller.before_simulation_step, base.scene.px
+    controller, px = base.agent.body_controller, base.scene.px
+    hook, articulation = controller.before_simulation_step, controller._cpu_articulation
+    held = articulation.get_qf().copy()  # the hovering efforts, held as the bare step of step_cost/step_floor does
     state = base.get_state_dict()
     row = {"hook, back to back": statistics.median(timings(hook, lambda: None, n))}
     base.set_state_dict(state)
@@ -91,8 +93,6 @@ def hook_row(n: int) -> dict[str, float]:
     base.set_state_dict(state)
     row["physics step, after the hook"] = statistics.median(timings(px.step, hook, n))
     base.set_state_dict(state)
-    articulation = base.agent.body_controller._cpu_articulation
-    held = articulation.get_qf().copy()  # the hovering efforts, held as the bare step of step_cost/step_floor does
     row["physics step, efforts held"] = statistics.median(timings(px.step, lambda: articulation.set_qf(held), n))
     env.close()
     return row

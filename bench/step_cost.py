@@ -258,8 +258,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1,
                         help="time each row this many times and report the minimum (on a shared machine)")
     parser.add_argument("--ppo-repeats", type=int, default=3,
-                        help="rounds of the PPO rows, the K's in turn, the best rate of each kept (a shared host's "
-                             "load moves one round's few windows; docs/performance.md)")
+                        help="rounds of the PPO rows, the K's in turn, the best rate of each kept "
+                             "(docs/performance.md)")
     args = parser.parse_args()
     global REPEATS
     REPEATS = max(1, args.repeats)
