@@ -11,6 +11,10 @@ as one call:
 - elsewhere, or where the ahead-of-time build fails, `torch.compile` (inductor);
 - where that fails too, the eager function: the same numbers, reported once.
 
+A kernel made with `direct=True` (the 240 Hz flight step, which writes its results into its inputs) is also offered
+without the package's runner: `direct_call` reads the package's generated C++ and calls its one fused function from
+Python, checked against the runner to the bit first (`Kernel.direct_call`).
+
 `AEROBENCH_COMPILE=0` forces the eager path (the tests' default); `AEROBENCH_COMPILE_MODE=reduce-overhead` asks
 inductor to capture the call in a CUDA graph on a GPU (docs/gpu.md).
 """
@@ -26,8 +30,11 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import NamedTuple
 
 import torch
+
+from .direct_call import UnsupportedPackage, direct_entry
 
 log = logging.getLogger(__name__)
 # Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
@@ -86,12 +93,21 @@ class _Exported(torch.nn.Module):
         return tuple(self.fn(*tensors))
 
 
+class Package(NamedTuple):
+    """A loaded ahead-of-time package: `run`, the runner's entry (the flat list of inputs -> the flat list of
+    outputs), and where asked for, `direct`: its kernel called without the runner (`direct_call`: the inputs as
+    arguments, results written into them), or why it cannot be (the exception)."""
+
+    run: Callable[[list[torch.Tensor]], list[torch.Tensor]]
+    direct: Callable[..., None] | Exception | None = None
+
+
 def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: str,
-             dynamic: dict[int, int] | None = None, stack_allocation: bool = False) -> Callable:
-    """`fn` compiled ahead of time for the shapes of `tensors` (CPU), built once per key and loaded from the cache:
-    returns a function of the flat tensor list that returns the flat list of outputs. `dynamic` maps an input's
-    position to the dimension left free (e.g. a scene's box count); `stack_allocation`: intermediates on the stack,
-    and the same output buffers at every call (see `AOT_INDUCTOR_OPTIONS`)."""
+             dynamic: dict[int, int] | None = None, stack_allocation: bool = False, direct: bool = False) -> Package:
+    """`fn` compiled ahead of time for the shapes of `tensors` (CPU), built once per key and loaded from the cache.
+    `dynamic` maps an input's position to the dimension left free (e.g. a scene's box count); `stack_allocation`:
+    intermediates on the stack, and the same output buffers at every call (see `AOT_INDUCTOR_OPTIONS`); `direct`:
+    also the package's kernel as a direct call, for a function that writes its results into its inputs."""
     dynamic = dynamic or {}
     options = {**AOT_INDUCTOR_OPTIONS, **(STACK_ALLOCATION if stack_allocation else {})}
     shapes = [tuple("*" if dynamic.get(i) == d else s for d, s in enumerate(t.shape)) for i, t in enumerate(tensors)]
@@ -120,8 +136,17 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
     before = _mapped_libraries()
     with torch._inductor.config.patch(options):
         run = torch._inductor.aoti_load_package(str(path)).loader.run
-    _remove_extractions(_mapped_libraries() - before)
-    return run
+    loaded = _mapped_libraries() - before
+    entry = None
+    if direct:
+        try:
+            if len(loaded) != 1:
+                raise UnsupportedPackage("the package's library was not found among the mapped ones")
+            entry = direct_entry(path, Path(next(iter(loaded))), [t.dtype for t in tensors], options)
+        except Exception as exc:  # noqa: BLE001 - the runner is the same kernel
+            entry = exc
+    _remove_extractions(loaded)
+    return Package(run, entry)
 
 
 _PROC_MAPS = Path("/proc/self/maps")
@@ -209,6 +234,13 @@ def hands_out_again(run: Callable, inputs: list[torch.Tensor]) -> bool:
                and a.untyped_storage().data_ptr() not in own for a, b in zip(first, second))
 
 
+def _same(a: torch.Tensor, b: torch.Tensor) -> bool:
+    """The same values to the bit, a NaN where the other has one."""
+    if not a.is_floating_point():
+        return torch.equal(a, b)
+    return torch.allclose(a, b, rtol=0.0, atol=0.0, equal_nan=True)
+
+
 class Kernel:
     """`fn` (flat tensors in, a flat tuple of tensors out) as one call: compiled on its first call (ahead of time on
     a CPU, else `torch.compile`); on any compiler failure the next option, reported once. `backend` says which ran
@@ -223,9 +255,11 @@ class Kernel:
 
     def __init__(self, fn: Callable, name: str, key: object, sources: Sequence[Path], device: torch.device | str,
                  compile: bool, dynamic: dict[int, int] | None = None,
-                 shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None, stack_allocation: bool = False):
+                 shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None, stack_allocation: bool = False,
+                 direct: bool = False):
         self.fn, self.name, self.dynamic = fn, name, dynamic
-        self.stack_allocation = stack_allocation
+        self.stack_allocation, self.direct = stack_allocation, direct
+        self._direct: dict[object, Callable[..., None]] = {}  # per shape key: the package's kernel called directly
         self._key, self._sources = key, tuple(sources)
         self._shape_key = shape_key or self._free_shapes
         self.backend = "not run yet" if compile else "eager"
@@ -261,8 +295,11 @@ class Kernel:
                 try:
                     key = repr((source_digest(self._sources), self._key))
                     inputs = [t.contiguous() for t in tensors]
-                    run = load_aot(self.fn, inputs, key, self.name, self.dynamic, self.stack_allocation)
+                    run, entry = load_aot(self.fn, inputs, key, self.name, self.dynamic, self.stack_allocation,
+                                          self.direct)
                     loaded = self._aot[shapes] = (run, _owned if hands_out_again(run, inputs) else _as_is)
+                    if self.direct:
+                        self._keep_direct(shapes, run, entry, inputs)
                 except Exception as exc:  # noqa: BLE001 - torch.compile (or eager) is the same function
                     self.aot_ok = False
                     self._report("ahead-of-time compilation", exc, "running torch.compile instead")
@@ -292,6 +329,33 @@ class Kernel:
         checks and copies."""
         fast = self._fast
         return fast[1] if self._compile and fast is not None and fast[0] == self._shape_key(tensors) else None
+
+    def direct_call(self, *tensors: torch.Tensor) -> Callable[..., None] | None:
+        """Where this kernel was made with `direct` and its package for inputs shaped like `tensors` allows it: the
+        package's kernel as a function of the inputs (as arguments, contiguous, of those shapes and dtypes, which it
+        does not check) that writes its results into them (`direct_call`); else None. For the hot loop that
+        `package` serves, without the runner's cost per call."""
+        return self._direct.get(self._shape_key(tensors)) if self.package(*tensors) is not None else None
+
+    def _keep_direct(self, shapes: object, run: Callable, entry: Callable | Exception | None,
+                     inputs: list[torch.Tensor]) -> None:
+        """Keep the direct entry if it writes what the runner writes, to the bit (it is the same generated kernel,
+        compiled apart from its package), on the first inputs and on a perturbed copy of them; else report why."""
+        if not callable(entry):
+            self._report("direct call", entry or UnsupportedPackage("no entry"), "calling the package's runner")
+            return
+        noise = torch.Generator().manual_seed(0)  # its own: the process's random state stays the caller's
+        perturbed = [t + 0.01 * torch.randn(t.shape, generator=noise, dtype=t.dtype) if t.is_floating_point() else t
+                     for t in inputs]
+        for trial in (inputs, perturbed):
+            by_runner, by_entry = [t.clone() for t in trial], [t.clone() for t in trial]
+            run(by_runner)
+            entry(*by_entry)
+            if not all(map(_same, by_runner, by_entry)):
+                self._report("direct call", UnsupportedPackage("its results differ from the runner's"),
+                             "calling the package's runner")
+                return
+        self._direct[shapes] = entry
 
     def _compiled_fn(self) -> Callable | None:
         if not self._compile or self._compile_failed:

@@ -155,16 +155,17 @@ class FusedPhysicsStep:
         self.arm = ArmParams.from_spec(platform.arm, platform.gripper, device) if platform.arm else None
         sources = _control_sources()
 
-        def kernel(variant: str, fn: Callable, stack_allocation: bool = False) -> Kernel:
+        def kernel(variant: str, fn: Callable, **options) -> Kernel:
             # the shapes follow from q's (N and the joint count): one comparison per call finds the loaded package
             return Kernel(fn, "physics_step", (variant, repr(platform)), sources, device, compile,
-                          shape_key=lambda tensors: tensors[0].shape, stack_allocation=stack_allocation)
+                          shape_key=lambda tensors: tensors[0].shape, **options)
 
         # the 240 Hz loop's step keeps its intermediates on the stack (one output, many intermediates: 2x cheaper a
-        # call than on the heap)
+        # call than on the heap) and its kernel is called directly (without the package's runner: 5 instead of
+        # 14 us a call right after a physics step, docs/performance.md)
         self.kernels = {"full": kernel("full", self.eager), "efforts": kernel("efforts", self.eager_efforts),
                         "efforts_in_place": kernel("efforts_in_place", self.eager_efforts_in_place,
-                                                   stack_allocation=True),
+                                                   stack_allocation=True, direct=True),
                         "airframe_state": kernel("airframe_state", self.eager_airframe_state),
                         "payload": kernel("payload", partial(payload_update_flat, params=self.params))}
         self._last = self.kernels["full"]
@@ -232,8 +233,10 @@ class FusedPhysicsStep:
         loop's own, returned at every call (the caller may keep a view of it, e.g. the numpy array PhysX takes), and
         the new `xi` and `yaw_des` into the input tensors, which it returns as the memory (the caller's memory
         tensors are updated in place: they must be its own). About 5 us a call less than the kernel's wrapper and
-        copies of its outputs, at 12 calls per control step (docs/performance.md). Without a package, or for a
-        strided input, the pure kernel's fresh outputs."""
+        copies of its outputs, at 12 calls per control step (docs/performance.md). The package's kernel is called
+        directly where `direct_call` can read the package (about 9 us a call less again, right after a physics
+        step), else through the package's runner. Without a package, or for a strided input, the pure kernel's
+        fresh outputs."""
         kernel = self.kernels["efforts_in_place"]
         efforts = torch.zeros_like(tensors[0])  # (N, J), as q_all
         if kernel.aot_ok:
@@ -241,11 +244,13 @@ class FusedPhysicsStep:
         run = kernel.package(efforts, *tensors)
         if run is None:
             return lambda inputs: self.efforts(*inputs)
+        direct = kernel.direct_call(efforts, *tensors)
+        step = direct if direct is not None else lambda *args: run(list(args))
 
         def call(inputs: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
             if not all_contiguous(inputs):  # the package reads raw memory: the wrapper makes a contiguous copy
                 return self.efforts(*inputs)
-            run([efforts, *inputs])
+            step(efforts, *inputs)
             return efforts, inputs[4], inputs[5]
 
         return call

@@ -148,6 +148,7 @@ def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_c
     loop = step.efforts_loop(inputs)  # builds or loads the package (on copies: the inputs are untouched)
     assert all(torch.equal(a, b) for a, b in zip(inputs, before))
     assert step.kernels["efforts_in_place"].package(*inputs) is not None
+    assert step.kernels["efforts_in_place"].direct_call(torch.zeros_like(inputs[0]), *inputs) is not None
     buffers = []
     for command in (1.0, -1.0):  # two calls, the second with another velocity command and the memory it left
         inputs[2] = command * before[2]
@@ -166,6 +167,66 @@ def test_the_240_hz_loop_calls_the_package_itself_with_the_kernels_numbers(aot_c
     eager = FusedPhysicsStep(spec, "cpu", compile=False)
     assert eager.kernels["efforts_in_place"].package(*inputs) is None
     assert all(torch.equal(a, b) for a, b in zip(eager.efforts_loop(inputs)(inputs), eager.eager_efforts(*inputs)))
+
+
+def _loop_run(step: FusedPhysicsStep, inputs: list[torch.Tensor], calls: int = 5) -> list[torch.Tensor]:
+    """The loop's efforts and memory after `calls` chained calls, each with another velocity command."""
+    inputs = [t.clone() for t in inputs]
+    loop, history = step.efforts_loop(inputs), []
+    for i in range(calls):
+        inputs[2] = inputs[2] * (-1.0) ** i + 0.1
+        history += [t.clone() for t in loop(inputs)]
+    return history
+
+
+def test_the_240_hz_loop_calls_the_kernel_directly_with_the_runners_numbers(aot_cache, monkeypatch):
+    """The arm platform's in-place package (a float and a bool input more): called directly, its kernel writes what
+    the package's runner writes, to the bit, over chained calls that feed the memory back."""
+    spec, tensors = _tensors("arm", n=1)
+    fingers = torch.randn(1, 2)
+    inputs = [torch.cat([tensors[0], fingers], -1), torch.cat([tensors[1], -fingers], -1), *tensors[2:]]
+    random_state = torch.get_rng_state()
+    direct = FusedPhysicsStep(spec, "cpu", compile=True)
+    by_direct = _loop_run(direct, inputs)
+    assert torch.equal(torch.get_rng_state(), random_state)  # the entry's check drew from a generator of its own
+    assert direct.kernels["efforts_in_place"].direct_call(torch.zeros_like(inputs[0]), *inputs) is not None
+    monkeypatch.setattr(kernels.Kernel, "direct_call", lambda self, *tensors: None)
+    by_runner = _loop_run(FusedPhysicsStep(spec, "cpu", compile=True), inputs)
+    assert len(by_direct) == len(by_runner) == 15
+    assert all(torch.equal(a, b) for a, b in zip(by_direct, by_runner))
+    assert not torch.equal(by_direct[0], by_direct[3])  # the calls differ: the comparison is not of one value
+
+
+def test_a_package_that_cannot_be_called_directly_keeps_its_runner(aot_cache, monkeypatch, caplog):
+    """Where the package is not of the form `direct_call` reads, or its direct call writes other numbers than the
+    runner's, the loop calls the runner, and says so once."""
+    spec, tensors = _tensors("gripper", n=1, seed=4)
+    fingers = torch.randn(1, 2)
+    inputs = [torch.cat([tensors[0], fingers], -1), torch.cat([tensors[1], -fingers], -1), *tensors[2:]]
+    with monkeypatch.context() as m:
+        m.setattr(kernels.Kernel, "direct_call", lambda self, *tensors: None)
+        reference = _loop_run(FusedPhysicsStep(spec, "cpu", compile=True), inputs)  # the runner's
+
+    def unsupported(*args, **kwargs):
+        raise kernels.UnsupportedPackage("run_impl calls more than one kernel")
+
+    def writes_zeros(*args, **kwargs):
+        def entry(*tensors):
+            for t in tensors:
+                if t.is_floating_point():
+                    t.zero_()
+        return entry
+
+    for entry, reason in ((unsupported, "run_impl calls more than one kernel"),
+                          (writes_zeros, "its results differ from the runner's")):
+        monkeypatch.setattr(kernels, "direct_entry", entry)
+        step = FusedPhysicsStep(spec, "cpu", compile=True)
+        with caplog.at_level("WARNING"):
+            looped = _loop_run(step, inputs)
+        assert step.kernels["efforts_in_place"].direct_call(torch.zeros_like(inputs[0]), *inputs) is None
+        assert f"direct call of the physics step failed (UnsupportedPackage: {reason}); calling the package's " \
+               "runner" in caplog.text
+        assert all(torch.equal(a, b) for a, b in zip(looped, reference))
 
 
 def test_the_compiled_payload_switches_are_the_eager_ones(aot_cache):
