@@ -70,6 +70,7 @@ _LINE_PATTERNS = {
                             r"cached_torch_device_type_cpu, this->device_idx_\);"),
     "alias": re.compile(r"auto (\w+) = wrap_with_raii_handle_if_needed\(reinterpret_tensor_wrapper\((\w+), \d+, "
                         r"int_array_\d+, int_array_\d+, (\d+)L\)\);(\s*// alias)?"),
+    "reuse": re.compile(r"auto (\w+) = std::move\((\w+)\);\s*// reuse"),
     "pointer": re.compile(r"auto\* (var_\d+) = get_data_ptr_wrapper\((\w+)\);"),
     "call": re.compile(r"(cpp_fused_\w+)\(((?:\((?:const )?[\w:]+\*\)\(var_\d+\)(?:, )?)+)\);"),
 }
@@ -118,6 +119,8 @@ def plan_from_wrapper(wrapper_cpp: str) -> CallPlan:
         elif kind == "alias":
             base = _known(names, match[2], line)
             names[match[1]] = Source(base.kind, base.name, base.offset + int(match[3]))
+        elif kind == "reuse":  # a dead buffer's storage taken over by a new one
+            names[match[1]] = _known(names, match[2], line)
         elif kind == "pointer":
             pointers[match[1]] = _known(names, match[2], line)
         else:

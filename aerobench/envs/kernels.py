@@ -13,7 +13,7 @@ as one call:
 
 A kernel made with `direct=True` (the 240 Hz flight step, which writes its results into its inputs) is also offered
 without the package's runner: `direct_call` reads the package's generated C++ and calls its one fused function from
-Python, checked against the runner to the bit first (`Kernel.direct_call`).
+Python, checked against the runner to the bit first (`Kernel.direct_call`); `AEROBENCH_DIRECT_CALL=0` keeps the runner.
 
 `AEROBENCH_COMPILE=0` forces the eager path (the tests' default); `AEROBENCH_COMPILE_MODE=reduce-overhead` asks
 inductor to capture the call in a CUDA graph on a GPU (docs/gpu.md).
@@ -66,8 +66,17 @@ AOT_INDUCTOR_OPTIONS = {
 STACK_ALLOCATION = {"aot_inductor.allow_stack_allocation": True}
 
 
+def _switched_on(variable: str) -> bool:
+    return os.environ.get(variable, "1").strip().lower() not in ("0", "false", "no", "off")
+
+
 def compile_requested() -> bool:
-    return os.environ.get("AEROBENCH_COMPILE", "1").strip().lower() not in ("0", "false", "no", "off")
+    return _switched_on("AEROBENCH_COMPILE")
+
+
+def direct_call_requested() -> bool:
+    """`AEROBENCH_DIRECT_CALL=0` keeps every package behind its runner (the same numbers, a slower call)."""
+    return _switched_on("AEROBENCH_DIRECT_CALL")
 
 
 def cache_dir() -> Path:
@@ -258,7 +267,7 @@ class Kernel:
                  shape_key: Callable[[tuple[torch.Tensor, ...]], object] | None = None, stack_allocation: bool = False,
                  direct: bool = False):
         self.fn, self.name, self.dynamic = fn, name, dynamic
-        self.stack_allocation, self.direct = stack_allocation, direct
+        self.stack_allocation, self.direct = stack_allocation, direct and direct_call_requested()
         self._direct: dict[object, Callable[..., None]] = {}  # per shape key: the package's kernel called directly
         self._key, self._sources = key, tuple(sources)
         self._shape_key = shape_key or self._free_shapes

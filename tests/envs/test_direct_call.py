@@ -14,7 +14,7 @@ from aerobench.envs.direct_call import (
 )
 
 # the shape of inductor's stack-allocating CPU wrapper (torch 2.11), cut down to two inputs, a constant, a stack
-# buffer with an alias into it and one in-place kernel
+# buffer with an alias into it and another name for it (reused), and one in-place kernel
 RUN_IMPL = """
 void AOTInductorModel::run_impl(
     AtenTensorHandle*
@@ -41,7 +41,8 @@ __check_inputs_outputs(input_handles, output_handles);
     auto buf4 = wrap_with_raii_handle_if_needed(reinterpret_tensor_wrapper(buf3, 2, int_array_4, int_array_1, 3L));  // alias
     auto* var_0 = get_data_ptr_wrapper(arg1_1);
     auto* var_1 = get_data_ptr_wrapper(_tensor_constant1);
-    auto* var_2 = get_data_ptr_wrapper(buf10);
+    auto buf11 = std::move(buf10);  // reuse
+    auto* var_2 = get_data_ptr_wrapper(buf11);
     auto* var_3 = get_data_ptr_wrapper(buf4);
     auto* var_4 = get_data_ptr_wrapper(arg0_1);
     cpp_fused_add_0((const float*)(var_0), (const float*)(var_1), (float*)(var_2), (float*)(var_3), (float*)(var_4));

@@ -111,3 +111,33 @@ def test_a_package_is_single_threaded_whatever_the_building_process_runs(aot_cac
     with zipfile.ZipFile(packages[0]) as package:
         sources = [package.read(name).decode() for name in package.namelist() if name.endswith(".cpp")]
     assert sources and not any("#pragma omp parallel" in source for source in sources)
+
+
+def _step_in_place(x: torch.Tensor, memory: torch.Tensor) -> tuple[()]:
+    memory.copy_(memory + torch.sin(x).sum(-1, keepdim=True))
+    return ()
+
+
+def test_only_a_package_that_writes_into_its_inputs_is_called_directly(aot_cache, caplog):
+    """A real package of each kind: one with outputs (either buffer placement) keeps its runner, reported once with
+    the line of its wrapper that `direct_call` does not read; an in-place one is called directly, with the runner's
+    numbers."""
+    x = torch.randn(1, 4)
+    for stack_allocation in (False, True):
+        kernel = Kernel(_step, "test_direct_outputs", ("step", stack_allocation), [], "cpu", compile=True,
+                        stack_allocation=stack_allocation, direct=True)
+        with caplog.at_level("WARNING"):
+            kernel(x, torch.ones(1, 1))
+        assert kernel.direct_call(x, torch.ones(1, 1)) is None
+    assert caplog.text.count("direct call of the test direct outputs failed (UnsupportedPackage: run_impl does more "
+                             "than one in-place kernel") == 2
+    kernel = Kernel(_step_in_place, "test_direct_in_place", "in place", [], "cpu", compile=True,
+                    stack_allocation=True, direct=True)
+    memory = torch.ones(1, 1)
+    kernel(x, memory.clone())
+    direct = kernel.direct_call(x, memory)
+    assert direct is not None
+    by_runner, by_direct = memory.clone(), memory.clone()
+    kernel.package(x, by_runner)([x, by_runner])
+    direct(x, by_direct)
+    assert torch.equal(by_direct, by_runner) and not torch.equal(by_direct, memory)
