@@ -172,7 +172,7 @@ def forwarding_source(plan: CallPlan, input_dtypes: Sequence[torch.dtype],
     lines = [f"extern \"C\" void {ENTRY}({', '.join(f'{p} in{i}' for i, p in enumerate(params))}) {{"]
     for name in plan.constants:
         if name not in constants or constants[name].dtype not in C_TYPES:
-            raise UnsupportedPackage(f"no value for the constant {name}")
+            raise UnsupportedPackage(f"no value for the constant {name} (or one of a type without a C type here)")
         c_type = C_TYPES[constants[name].dtype]
         values = ", ".join(_literal(v, c_type) for v in memory_order(constants[name]).tolist())
         lines.append(f"    alignas(64) static const {c_type} {name}[] = {{{values}}};")
