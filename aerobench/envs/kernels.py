@@ -356,14 +356,16 @@ class Kernel:
         noise = torch.Generator().manual_seed(0)  # its own: the process's random state stays the caller's
         perturbed = [t + 0.01 * torch.randn(t.shape, generator=noise, dtype=t.dtype) if t.is_floating_point() else t
                      for t in inputs]
-        for trial in (inputs, perturbed):
-            by_runner, by_entry = [t.clone() for t in trial], [t.clone() for t in trial]
-            run(by_runner)
-            entry(*by_entry)
-            if not all(map(_same, by_runner, by_entry)):
-                self._report("direct call", UnsupportedPackage("its results differ from the runner's"),
-                             "calling the package's runner")
-                return
+        try:  # a failing entry costs the direct call, never the package it was made from
+            for trial in (inputs, perturbed):
+                by_runner, by_entry = [t.clone() for t in trial], [t.clone() for t in trial]
+                run(by_runner)
+                entry(*by_entry)
+                if not all(map(_same, by_runner, by_entry)):
+                    raise UnsupportedPackage("its results differ from the runner's")
+        except Exception as exc:  # noqa: BLE001 - the runner is the same kernel
+            self._report("direct call", exc, "calling the package's runner")
+            return
         self._direct[shapes] = entry
 
     def _compiled_fn(self) -> Callable | None:

@@ -200,8 +200,8 @@ def test_the_240_hz_loop_calls_the_kernel_directly_with_the_runners_numbers(aot_
 
 
 def test_a_package_that_cannot_be_called_directly_keeps_its_runner(aot_cache, monkeypatch, caplog):
-    """Where the package is not of the form `direct_call` reads, or its direct call writes other numbers than the
-    runner's, the loop calls the runner, and says so once."""
+    """Where the package is not of the form `direct_call` reads, or its direct call fails or writes other numbers
+    than the runner's, the loop calls the runner of the same package, and says so once."""
     spec, tensors = _tensors("gripper", n=1, seed=4)
     fingers = torch.randn(1, 2)
     inputs = [torch.cat([tensors[0], fingers], -1), torch.cat([tensors[1], -fingers], -1), *tensors[2:]]
@@ -219,14 +219,21 @@ def test_a_package_that_cannot_be_called_directly_keeps_its_runner(aot_cache, mo
                     t.zero_()
         return entry
 
-    for entry, reason in ((unsupported, "run_impl calls more than one kernel"),
-                          (writes_zeros, "its results differ from the runner's")):
+    def raises(*args, **kwargs):
+        def entry(*tensors):
+            raise RuntimeError("requires 12 args")
+        return entry
+
+    for entry, reason in ((unsupported, "UnsupportedPackage: run_impl calls more than one kernel"),
+                          (writes_zeros, "UnsupportedPackage: its results differ from the runner's"),
+                          (raises, "RuntimeError: requires 12 args")):
         monkeypatch.setattr(kernels, "direct_entry", entry)
         step = FusedPhysicsStep(spec, "cpu", compile=True)
         with caplog.at_level("WARNING"):
             looped = _loop_run(step, inputs)
         assert step.kernels["efforts_in_place"].direct_call(torch.zeros_like(inputs[0]), *inputs) is None
-        assert f"direct call of the physics step failed (UnsupportedPackage: {reason}); calling the package's " \
+        assert step.kernels["efforts_in_place"].backend == "compiled ahead of time"  # the package stays
+        assert f"direct call of the physics step failed ({reason}); calling the package's " \
                "runner" in caplog.text
         assert all(torch.equal(a, b) for a, b in zip(looped, reference))
 
