@@ -12,7 +12,7 @@ train ppo` env steps per second (Pick, from scratch, the spec's 64-step windows)
 worker processes (physx_cpu runs one env per process), the K's in turn for `--ppo-repeats` rounds, the best of each
 kept.
 
-    python bench/step_cost.py [--steps 100] [--episodes 5] [--ppo-windows 3] [--ppo-envs 2] [--no-cameras] [--repeats 1]
+    python bench/step_cost.py [--steps 100] [--episodes 5] [--ppo-windows 8] [--ppo-envs 2] [--no-cameras] [--repeats 1]
                               [--ppo-repeats 3]
 """
 
@@ -222,7 +222,8 @@ def expert_episodes_per_min(episodes: int) -> tuple[float, int, int]:
 
 
 def ppo_steps_per_second(num_envs: int, windows: int) -> float:
-    """Env steps per second of `train_ppo` over its windows after the first (which pays the process start-up)."""
+    """Env steps per second of `train_ppo` over its windows after the first (which pays the process start-up): their
+    steps over their time (each window logs its own rate and holds the same steps, so the harmonic mean)."""
     import tempfile
 
     from aerobench.train.common import read_scalars
@@ -233,7 +234,7 @@ def ppo_steps_per_second(num_envs: int, windows: int) -> float:
                            total_steps=64 * num_envs * windows, hidden=(64, 64), save_every=windows, progress=False)
         train_ppo(config)
         sps = [v for _, v in read_scalars(out, "charts/SPS")][1:]
-    return sum(sps) / len(sps)
+    return len(sps) / sum(1.0 / v for v in sps)
 
 
 def ppo_rates(env_counts: list[int], windows: int, repeats: int) -> dict[int, float]:
@@ -251,7 +252,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=100, help="control steps timed per row")
     parser.add_argument("--episodes", type=int, default=5, help="expert Pick episodes for the episodes-per-minute row")
-    parser.add_argument("--ppo-windows", type=int, default=3, help="PPO windows per K (0: skip the PPO rows)")
+    # 8 windows: a window is about 0.2 s, and a reset (about 30 ms) in either worker's window holds the other one
+    # up; two timed windows measured which windows held a reset more than the throughput (docs/performance.md)
+    parser.add_argument("--ppo-windows", type=int, default=8, help="PPO windows per K (0: skip the PPO rows)")
     parser.add_argument("--ppo-envs", type=lambda t: [int(v) for v in t.split(",")], default=[2],
                         help="K values (> 1) of the worker-process PPO rows, comma-separated")
     parser.add_argument("--no-cameras", action="store_true", help="skip the rendered row (e)")

@@ -117,6 +117,45 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
     `dynamic` maps an input's position to the dimension left free (e.g. a scene's box count); `stack_allocation`:
     intermediates on the stack, and the same output buffers at every call (see `AOT_INDUCTOR_OPTIONS`); `direct`:
     also the package's kernel as a direct call, for a function that writes its results into its inputs."""
+    with trusted_vector_isa():
+        return _load_aot(fn, tensors, key, folder, dynamic, stack_allocation, direct)
+
+
+@contextmanager
+def trusted_vector_isa() -> Iterator[None]:
+    """Inductor's vector ISA taken from what the CPU advertises, without the probes `cpp.vec_isa_ok` leaves.
+
+    Inductor proves an ISA by building a test library and loading it in a fresh Python process that imports torch.
+    `cpp.vec_isa_ok` skips that for the base ISAs (AVX2, AVX-512), but not for the extensions probed wherever the
+    CPU advertises them (AVX-512 VNNI and BF16, AMX): three fresh processes on this machine, about 5 s at the first
+    package of every process (loading checks the package against the CPU, and the direct entry's build asks
+    again), half of an env's start (docs/performance.md; pytorch/pytorch#100378). Inside this context a probe is
+    answered without the build: VNNI and BF16 pass, as the probe passes them with any compiler from gcc 10, so the
+    ISA, the flags and the cache keys are what the probes gave; AMX is declined (its FP16 flag needs gcc 13, and
+    these float32 kernels of a batch of one use no tiles). Inductor keeps the answers for the rest of the process.
+    Torch internals: where they are not as expected, the probes run as before."""
+    try:
+        from torch._inductor.cpu_vec_isa import VecISA
+
+        probe = VecISA.__dict__["check_build"]
+    except (ImportError, KeyError):
+        yield
+        return
+    VecISA.check_build = _answered
+    try:
+        yield
+    finally:
+        VecISA.check_build = probe
+
+
+def _answered(isa, code: str) -> bool:
+    """`VecISA.check_build` inside `trusted_vector_isa`: an extension the CPU advertises passes, AMX excepted (the
+    probe's flags say which it is: `-mamx-*`)."""
+    return "-mamx" not in getattr(isa, "_arch_flags", "-mamx")
+
+
+def _load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: str, dynamic: dict[int, int] | None,
+              stack_allocation: bool, direct: bool) -> Package:
     dynamic = dynamic or {}
     options = {**AOT_INDUCTOR_OPTIONS, **(STACK_ALLOCATION if stack_allocation else {})}
     shapes = [tuple("*" if dynamic.get(i) == d else s for d, s in enumerate(t.shape)) for i, t in enumerate(tensors)]
@@ -141,7 +180,8 @@ def load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: st
         finally:
             if os.path.exists(tmp):
                 os.remove(tmp)
-    # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it).
+    # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it;
+    # `trusted_vector_isa` covers the probes that `cpp.vec_isa_ok` leaves).
     before = _mapped_libraries()
     with torch._inductor.config.patch(options):
         run = torch._inductor.aoti_load_package(str(path)).loader.run

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from aerobench.envs.kernels import Kernel, hands_out_again, shared_kernel
+from aerobench.envs.kernels import Kernel, hands_out_again, shared_kernel, trusted_vector_isa
 
 
 def _plus_one(x: torch.Tensor) -> tuple[torch.Tensor]:
@@ -112,6 +112,49 @@ def test_a_package_is_single_threaded_whatever_the_building_process_runs(aot_cac
         sources = [package.read(name).decode() for name in package.namelist() if name.endswith(".cpp")]
     assert sources and not any("#pragma omp parallel" in source for source in sources)
 
+
+
+def test_inductors_isa_probes_are_answered_without_building_or_a_fresh_process(monkeypatch):
+    """Inside `trusted_vector_isa` an extension probe builds nothing and starts no process (each costs a fresh Python
+    importing torch, about 1.6 s here): AVX-512 VNNI and BF16 pass, AMX is declined; outside it inductor's own probe
+    is back."""
+    import subprocess
+
+    from torch._inductor import cpu_vec_isa
+
+    def no_process(*args, **kwargs):
+        raise AssertionError(f"a probe started a process: {args}")
+
+    monkeypatch.setattr(subprocess, "check_call", no_process)
+    probe = cpu_vec_isa.VecISA.check_build
+    with trusted_vector_isa():
+        vnni, amx = cpu_vec_isa.VecAVX512VNNI(), cpu_vec_isa.VecAMX()  # fresh instances: nothing cached
+        assert vnni.check_build(vnni._avx512_vnni_code) is True
+        assert amx.check_build(cpu_vec_isa.VecAMX._amx_code) is False
+    assert cpu_vec_isa.VecISA.check_build is probe
+
+
+def test_the_answered_isa_is_the_one_inductors_probes_pick():
+    """What a process that loads packages picks (answered probes) against what inductor's probes pick in a fresh
+    process: the same ISA and compiler flags, so the kernels' builds and cache keys are what they were; on a CPU with
+    AMX tiles the answered ISA is the best one below AMX."""
+    import json
+    import subprocess
+    import sys
+
+    script = """
+import json, sys, torch
+from torch._inductor import config, cpu_vec_isa
+from aerobench.envs.kernels import trusted_vector_isa
+answered = sys.argv[1] == "answered"
+with config.patch({"cpp.vec_isa_ok": True}), (trusted_vector_isa() if answered else config.patch({})):
+    isas = [isa for isa in cpu_vec_isa.valid_vec_isa_list() if not (answered is False and "amx" in str(isa))]
+print(json.dumps([str(isas[0]), isas[0].build_arch_flags()] if isas else None))
+"""
+    picked = {how: json.loads(subprocess.run([sys.executable, "-c", script, how], capture_output=True, text=True,
+                                             check=True).stdout.strip().splitlines()[-1])
+              for how in ("answered", "probed")}
+    assert picked["answered"] == picked["probed"], picked
 
 def _step_in_place(x: torch.Tensor, memory: torch.Tensor) -> tuple[()]:
     memory.copy_(memory + torch.sin(x).sum(-1, keepdim=True))
