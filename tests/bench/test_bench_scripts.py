@@ -197,7 +197,6 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
     assert "the best of 3 runs in turn: K=2 worker processes 230.0 (1.92x of K=1" in out
 
 
-
 def test_step_cost_ppo_rate_is_the_timed_windows_steps_over_their_time(monkeypatch):
     """Each window logs its own rate over the same steps: the run's rate leaves out the first window (process
     start-up) and is the harmonic mean of the others, steps over time, not the mean of the rates (which would count
@@ -210,6 +209,7 @@ def test_step_cost_ppo_rate_is_the_timed_windows_steps_over_their_time(monkeypat
     monkeypatch.setattr(common, "read_scalars", lambda out, tag: [(64, 50.0), (128, 100.0), (192, 300.0)])
     assert step_cost.ppo_steps_per_second(2, 3) == pytest.approx(150.0)
     assert configs[0].num_envs == 2 and configs[0].total_steps == 64 * 2 * 3
+
 
 def test_step_cost_times_the_ppo_env_counts_in_turn_and_keeps_the_best_of_each(monkeypatch):
     """A load change between two K's runs must reach every K alike: rounds of K = 1, 2, 4 in turn, the best kept."""

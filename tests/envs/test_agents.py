@@ -13,7 +13,7 @@ from aerobench.envs.agents import NonFiniteActionError
 from aerobench.envs.agents.airframe import VIRTUAL_LINK_NAMES
 from aerobench.envs.agents.finger_controller import FingerController
 from aerobench.envs.flight_test import articulated_mass_properties
-from aerobench.envs.platforms import MAX_SPEED_MPS
+from aerobench.envs.platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS
 
 
 @pytest.fixture(scope="module", params=["gripper", "arm"])
@@ -75,12 +75,9 @@ def test_finite_actions_whose_sum_overflows_are_taken(env):
     assert torch.equal(env.agent.body_controller.velocity_cmd[0, :2], torch.full((2,), MAX_SPEED_MPS))
 
 
-
 def test_the_flight_command_is_the_clipped_action_scaled(env):
     """The body controller writes each command into one buffer that the fused step reads through `velocity_cmd` and
     `yaw_rate_cmd`: the numbers are the spec's bounds times the clipped action, to the bit, and a reset zeroes them."""
-    from aerobench.envs.platforms import MAX_YAW_RATE_RPS
-
     body = env.agent.body_controller
     read_by_the_step = body.velocity_cmd, body.yaw_rate_cmd
     action = np.zeros(env.platform.action_dim, dtype=np.float32)
@@ -92,6 +89,7 @@ def test_the_flight_command_is_the_clipped_action_scaled(env):
     assert body.velocity_cmd is read_by_the_step[0] and body.yaw_rate_cmd is read_by_the_step[1]
     env.reset(seed=0)
     assert not body.velocity_cmd.any() and not body.yaw_rate_cmd.any()
+
 
 def test_three_onboard_rgbd_cameras():
     env = gym.make("AeroFly-v1", obs_mode="rgbd", scene="room", platform="gripper")

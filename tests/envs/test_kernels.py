@@ -113,7 +113,6 @@ def test_a_package_is_single_threaded_whatever_the_building_process_runs(aot_cac
     assert sources and not any("#pragma omp parallel" in source for source in sources)
 
 
-
 def test_inductors_isa_probes_are_answered_without_building_or_a_fresh_process(monkeypatch):
     """Inside `trusted_vector_isa` an extension probe builds nothing and starts no process (each costs a fresh Python
     importing torch, about 1.6 s here): AVX-512 VNNI and BF16 pass, AMX is declined; outside it inductor's own probe
@@ -155,6 +154,7 @@ print(json.dumps([str(isas[0]), isas[0].build_arch_flags()] if isas else None))
                                              check=True).stdout.strip().splitlines()[-1])
               for how in ("answered", "probed")}
     assert picked["answered"] == picked["probed"], picked
+
 
 def _step_in_place(x: torch.Tensor, memory: torch.Tensor) -> tuple[()]:
     memory.copy_(memory + torch.sin(x).sum(-1, keepdim=True))
