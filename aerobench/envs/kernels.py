@@ -38,7 +38,8 @@ from .direct_call import UnsupportedPackage, direct_entry
 
 log = logging.getLogger(__name__)
 # Trust the CPU's advertised vector ISA instead of proving it: inductor otherwise builds a test library and loads it
-# in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not.
+# in a fresh Python process per ISA, about 20 s at every process start on this 2-core machine, cache or not (the
+# extensions it probes even so are answered by `trusted_vector_isa`, around every ahead-of-time build and load).
 # One thread in the generated C++: inductor otherwise writes the building process's torch thread count into the code
 # (`#pragma omp parallel num_threads(n)`), and every call of such a kernel starts a team of n threads even in a
 # one-thread process. A package built by a two-thread process (`aerobench demo`) and then run by K rollout workers,
