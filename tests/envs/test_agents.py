@@ -91,6 +91,31 @@ def test_the_flight_command_is_the_clipped_action_scaled(env):
     assert not body.velocity_cmd.any() and not body.yaw_rate_cmd.any()
 
 
+def test_the_action_read_as_host_floats_sets_what_the_controllers_tensor_path_sets(env):
+    """On physx_cpu the agent reads the one env's action as host floats and hands each controller its columns
+    (`set_action_values`); ManiSkill's combined controller slices the tensor and each controller clips and scales it.
+    Both give the same flight command, arm targets and finger drive targets, to the bit, for actions inside and
+    outside [-1, 1]."""
+    agent, body = env.agent, env.agent.body_controller
+    fingers = agent.controller.controllers["gripper"]
+    generator = torch.Generator().manual_seed(0)
+
+    def applied():
+        targets = [float(j._objs[0].get_drive_target()[0]) for j in fingers.joints]
+        return body._command.clone(), body.arm_target.clone(), targets
+
+    for _ in range(20):
+        action = torch.rand(1, env.platform.action_dim, generator=generator) * 3.0 - 1.5
+        agent.set_action(action)
+        by_host = applied()
+        fingers.reset()  # the tensor path must apply the fingers' command, not find it held
+        agent.controller.set_action(action)
+        by_tensors = applied()
+        assert torch.equal(by_host[0], by_tensors[0]) and torch.equal(by_host[1], by_tensors[1])
+        assert by_host[2] == by_tensors[2]
+    assert agent._host_routes() is not None  # (physx_cpu: the host path is the one taken)
+
+
 def test_three_onboard_rgbd_cameras():
     env = gym.make("AeroFly-v1", obs_mode="rgbd", scene="room", platform="gripper")
     obs, _ = env.reset(seed=0)

@@ -52,8 +52,10 @@ def test_an_expert_episode_is_the_same_with_every_command_applied():
         obs, _ = env.reset(seed=0)
         base = env.unwrapped
         fingers = base.agent.controller.controllers["gripper"]
-        if not skip:
-            fingers.set_action = lambda a, c=fingers: PDJointPosMimicController.set_action(c, a)
+        applied = []
+        if not skip:  # the agent hands the fingers their command as host floats on physx_cpu: each one applied
+            fingers.set_action_values = lambda v, c=fingers, applied=applied: (
+                applied.append(v), PDJointPosMimicController.set_action(c, torch.tensor([v])))
         policy = make_policy("expert", base)
         policy.reset(torch.arange(1))
         actions, success = [], []
@@ -65,6 +67,7 @@ def test_an_expert_episode_is_the_same_with_every_command_applied():
             if bool(terminated.any() | truncated.any()):
                 break
         runs.append((torch.cat(actions), success, obs.clone()))
+        assert len(applied) == (0 if skip else len(actions))
         env.close()
     (a, s, o), (b, t, p) = runs
     assert s[-1] and s == t and torch.equal(a, b) and torch.equal(o, p)

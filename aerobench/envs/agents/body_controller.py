@@ -9,7 +9,7 @@ PD mimic controller combined after it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -44,6 +44,9 @@ class AerialBodyController(BaseController):
         self._command = torch.zeros(n, 4, device=self.device)
         self._command_scale = torch.tensor([MAX_SPEED_MPS] * 3 + [MAX_YAW_RATE_RPS], device=self.device)
         self.velocity_cmd, self.yaw_rate_cmd = self._command[:, :3], self._command[:, 3]
+        # physx_cpu: the buffer's one row as the array `set_action_values` fills, and the scale as host floats
+        self._command_row = None if self.scene.gpu_sim_enabled else self._command.numpy()[0]
+        self._command_scale_values = self._command_scale.tolist()
         working = platform.arm.working_pose_rad if platform.arm else ()
         self.arm_target = torch.tensor(working, dtype=torch.float32, device=self.device).expand(n, len(working)).clone()
         self.contact_mode = torch.zeros(n, dtype=torch.bool, device=self.device)
@@ -106,7 +109,18 @@ class AerialBodyController(BaseController):
         action = torch.clamp(action, -1.0, 1.0)
         torch.mul(action if self.arm is None else action[:, :4], self._command_scale, out=self._command)
         if self.arm is not None:
-            self.arm_target = self.arm.lower + 0.5 * (action[:, 4:7] + 1.0) * (self.arm.upper - self.arm.lower)
+            self._set_arm_target(action[:, 4:7])
+
+    def set_action_values(self, values: Sequence[float]) -> None:
+        """`set_action` for the one env of physx_cpu, from its action as host floats (`AerialAgent.set_action`): the
+        same float32 numbers without a tensor op for the flight command. A float32 action times a float32 bound is
+        exact in double precision, so rounding it once into the float32 buffer gives torch's float32 product."""
+        self._command_row[:] = [min(max(v, -1.0), 1.0) * s for v, s in zip(values, self._command_scale_values)]
+        if self.arm is not None:
+            self._set_arm_target(torch.tensor([values[4:7]], dtype=torch.float32, device=self.device).clamp(-1.0, 1.0))
+
+    def _set_arm_target(self, clipped: torch.Tensor) -> None:
+        self.arm_target = self.arm.lower + 0.5 * (clipped + 1.0) * (self.arm.upper - self.arm.lower)
 
     def joint_state(self) -> tuple[torch.Tensor, torch.Tensor]:
         """The whole articulation's joint positions and velocities `(N, J)` (on physx_cpu straight from PhysX)."""

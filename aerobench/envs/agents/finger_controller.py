@@ -11,6 +11,7 @@ device.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
@@ -27,7 +28,8 @@ class FingerController(PDJointPosMimicController):
         # physx_cpu: the PhysX joints themselves, to confirm that they still hold the targets applied last (another
         # control mode's controller, or any other code, may have moved them since)
         self._cpu_joints = None if self.scene.gpu_sim_enabled else [joint._objs[0] for joint in self.joints]
-        self._applied: tuple[torch.Tensor, list[float]] | None = None  # the last command and its drive targets
+        self._applied: tuple[list[float], list[float]] | None = None  # the last command and its drive targets
+        self._dim = self.single_action_space.shape[0]
 
     def reset(self):
         super().reset()  # the reset envs' targets become their current joint positions: the next command applies
@@ -39,16 +41,20 @@ class FingerController(PDJointPosMimicController):
         controller alone at 240 Hz for that reason."""
 
     def set_action(self, action: torch.Tensor):
-        joints = self._cpu_joints
-        if joints is None:
-            super().set_action(action)
+        if self._cpu_joints is None or action.shape != (1, self._dim):
+            super().set_action(action)  # (ManiSkill's check names a wrong shape)
+            self._applied = None
             return
-        applied = self._applied
-        if (applied is not None and torch.equal(action, applied[0])
+        self.set_action_values(action.tolist()[0])
+
+    def set_action_values(self, values: Sequence[float]) -> None:
+        """`set_action` for the one env of physx_cpu, from its command as host floats (`AerialAgent.set_action`)."""
+        joints, applied = self._cpu_joints, self._applied
+        if (applied is not None and applied[0] == values
                 and all(float(j.get_drive_target()[0]) == t for j, t in zip(joints, applied[1]))):
             return  # PhysX holds the very targets this command gives
-        super().set_action(action)
-        self._applied = (action.clone(), [float(j.get_drive_target()[0]) for j in joints])
+        super().set_action(torch.tensor([values], dtype=torch.float32, device=self.device))
+        self._applied = (list(values), [float(j.get_drive_target()[0]) for j in joints])
 
 
 @dataclass
