@@ -49,12 +49,12 @@ class FingerController(PDJointPosMimicController):
 
     def set_action_values(self, values: Sequence[float]) -> None:
         """`set_action` for the one env of physx_cpu, from its command as host floats (`AerialAgent.set_action`)."""
-        joints, applied = self._cpu_joints, self._applied
+        joints, applied, values = self._cpu_joints, self._applied, list(values)
         if (applied is not None and applied[0] == values
                 and all(float(j.get_drive_target()[0]) == t for j, t in zip(joints, applied[1]))):
             return  # PhysX holds the very targets this command gives
         super().set_action(torch.tensor([values], dtype=torch.float32, device=self.device))
-        self._applied = (list(values), [float(j.get_drive_target()[0]) for j in joints])
+        self._applied = (values, [float(j.get_drive_target()[0]) for j in joints])
 
 
 @dataclass
