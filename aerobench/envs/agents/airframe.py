@@ -7,6 +7,7 @@ its extra joints. Everything is built procedurally from `platforms.py`; no mesh 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 import sapien
@@ -62,6 +63,14 @@ VIRTUAL_LINK_NAMES = frozenset({"world_anchor"} | {f"{n}_link" for n in VIRTUAL_
 AIRFRAME_COLOR = (0.15, 0.15, 0.17)
 ROTOR_COLOR = (0.55, 0.58, 0.62)
 GRIPPER_COLOR = (0.85, 0.45, 0.1)
+
+
+@lru_cache(maxsize=32)
+def _camera_pose(eye: tuple[float, float, float], target: tuple[float, float, float]) -> torch.Tensor:
+    """`sapien_utils.look_at(eye, target)` as a raw pose `(1, 7)`: the onboard cameras' mounts are constants, and
+    ManiSkill's look-at (torch ops and a matrix-to-quaternion conversion) cost 4% of a reset at every episode's
+    reconfiguration; callers take a copy."""
+    return sapien_utils.look_at(eye, target).raw_pose
 
 
 class NonFiniteActionError(ValueError):
@@ -239,7 +248,7 @@ class AerialAgent(BaseAgent):
         return [
             CameraConfig(
                 uid=c.uid,
-                pose=sapien_utils.look_at(c.eye_m, c.target_m),
+                pose=Pose.create(_camera_pose(c.eye_m, c.target_m).clone()),
                 width=c.width,
                 height=c.height,
                 fov=c.fov_rad,

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -331,15 +332,18 @@ def box_aabbs(boxes: np.ndarray) -> np.ndarray:
 def rects_overlap(a: tuple[Vec2, Vec2, float], b: tuple[Vec2, Vec2, float], gap: float = 0.0) -> bool:
     """Whether two oriented rectangles (centre, half size, yaw) come closer than `gap` (separating axis test;
     `gap` inflates `a`, so corners count as square)."""
+    # plain floats: a layout makes thousands of these tests, and a 2-vector in numpy costs microseconds an op. A
+    # product of two 2-vectors is `x0 * y0 + x1 * y1`, the very sum numpy's dot makes of them (no fused multiply-add:
+    # checked on random vectors), so every test, and so every layout a seed gives, is what it was with numpy.
     (ca, ha, ya), (cb, hb, yb) = a, b
     ha = (ha[0] + gap, ha[1] + gap)
-    d = np.array([cb[0] - ca[0], cb[1] - ca[1]])
-    axes_a = [np.array([math.cos(ya), math.sin(ya)]), np.array([-math.sin(ya), math.cos(ya)])]
-    axes_b = [np.array([math.cos(yb), math.sin(yb)]), np.array([-math.sin(yb), math.cos(yb)])]
-    for axis in axes_a + axes_b:
-        ra = sum(h * abs(float(axis @ u)) for h, u in zip(ha, axes_a))
-        rb = sum(h * abs(float(axis @ u)) for h, u in zip(hb, axes_b))
-        if abs(float(axis @ d)) >= ra + rb:
+    dx, dy = cb[0] - ca[0], cb[1] - ca[1]
+    axes_a = ((math.cos(ya), math.sin(ya)), (-math.sin(ya), math.cos(ya)))
+    axes_b = ((math.cos(yb), math.sin(yb)), (-math.sin(yb), math.cos(yb)))
+    for ax, ay in axes_a + axes_b:
+        ra = sum(h * abs(ax * ux + ay * uy) for h, (ux, uy) in zip(ha, axes_a))
+        rb = sum(h * abs(ax * ux + ay * uy) for h, (ux, uy) in zip(hb, axes_b))
+        if abs(ax * dx + ay * dy) >= ra + rb:
             return False
     return True
 
@@ -368,12 +372,13 @@ def _hover_valid(points: np.ndarray, height: float, aabbs: np.ndarray) -> np.nda
     return ~hit.any(axis=1)
 
 
-def clear_height(support: Support, boxes: np.ndarray) -> float:
-    """Free height above a support's area: to the lowest box bottom above it (inf when nothing is above)."""
+def clear_height(support: Support, boxes: np.ndarray, aabbs: np.ndarray | None = None) -> float:
+    """Free height above a support's area: to the lowest box bottom above it (inf when nothing is above). `aabbs`:
+    `box_aabbs(boxes)`, where the caller has them."""
     c, s = abs(math.cos(support.yaw)), abs(math.sin(support.yaw))
     ex = c * support.half_size[0] + s * support.half_size[1]
     ey = s * support.half_size[0] + c * support.half_size[1]
-    aabbs = box_aabbs(boxes)
+    aabbs = box_aabbs(boxes) if aabbs is None else aabbs
     over = (
         (aabbs[:, 0] < support.center[0] + ex) & (aabbs[:, 3] > support.center[0] - ex)
         & (aabbs[:, 1] < support.center[1] + ey) & (aabbs[:, 4] > support.center[1] - ey)
@@ -382,9 +387,11 @@ def clear_height(support: Support, boxes: np.ndarray) -> float:
     return float(aabbs[over, 2].min() - support.height) if over.any() else math.inf
 
 
-def fit_support(support: Support, boxes: np.ndarray) -> Support | None:
+def fit_support(support: Support, boxes: np.ndarray, aabbs: np.ndarray | None = None) -> Support | None:
     """Shrink a support until a hovering quadrotor clears every box over all of it (module docstring); None if
-    less than `MIN_SUPPORT_SIDE_M` a side is left or something sits lower than `CLEAR_HEIGHT_M` above it."""
+    less than `MIN_SUPPORT_SIDE_M` a side is left or something sits lower than `CLEAR_HEIGHT_M` above it. `aabbs`:
+    `box_aabbs(boxes)`, where the caller has them."""
+    aabbs = box_aabbs(boxes) if aabbs is None else aabbs
     hx, hy = support.half_size
     if min(hx, hy) * 2 < MIN_SUPPORT_SIDE_M:
         return None
@@ -393,7 +400,7 @@ def fit_support(support: Support, boxes: np.ndarray) -> Support | None:
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     c, s = math.cos(support.yaw), math.sin(support.yaw)
     pts = np.stack([support.center[0] + c * gx - s * gy, support.center[1] + s * gx + c * gy], axis=-1)
-    valid = _hover_valid(pts.reshape(-1, 2), support.height, box_aabbs(boxes)).reshape(gx.shape)
+    valid = _hover_valid(pts.reshape(-1, 2), support.height, aabbs).reshape(gx.shape)
     i0, i1, j0, j1 = 0, len(xs) - 1, 0, len(ys) - 1
     while not valid[i0 : i1 + 1, j0 : j1 + 1].all():
         bad = ~valid[i0 : i1 + 1, j0 : j1 + 1]
@@ -411,7 +418,7 @@ def fit_support(support: Support, boxes: np.ndarray) -> Support | None:
         center=(float(support.center[0] + c * lx - s * ly), float(support.center[1] + s * lx + c * ly)),
         half_size=(float((xs[i1] - xs[i0]) / 2), float((ys[j1] - ys[j0]) / 2)),
     )
-    above = clear_height(fitted, boxes)
+    above = clear_height(fitted, boxes, aabbs)
     if above < CLEAR_HEIGHT_M:
         return None
     return replace(fitted, clear_height=above)
@@ -430,10 +437,8 @@ def free_point(
     if toward is not None:
         cand = np.array([[target[0] + k * step * toward[0], target[1] + k * step * toward[1]] for k in range(n + 1)])
     else:
-        g = np.arange(-n, n + 1) * step
-        gx, gy = np.meshgrid(g, g, indexing="ij")
-        order = np.argsort(np.maximum(np.abs(gx), np.abs(gy)).ravel() * 10 + np.hypot(gx, gy).ravel(), kind="stable")
-        cand = np.stack([target[0] + gx.ravel()[order], target[1] + gy.ravel()[order]], axis=-1)
+        dx, dy = _square_search_offsets(n, step)
+        cand = np.stack([target[0] + dx, target[1] + dy], axis=-1)
     pts = np.concatenate([cand, np.full((len(cand), 1), target[2])], axis=-1)
     inside = (
         (pts[:, 0] > lo[0] + clearance) & (pts[:, 0] < hi[0] - clearance)
@@ -456,6 +461,19 @@ def free_point(
             p = chunk[int(np.argmax(ok))]
             return (float(p[0]), float(p[1]), float(p[2]))
     return None
+
+
+@lru_cache(maxsize=8)
+def _square_search_offsets(n: int, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """`free_point`'s grid offsets (x, y) in search order: growing squares, nearest first within each. The same for
+    every call with the same grid (a layout makes dozens of calls), so made once; read-only."""
+    g = np.arange(-n, n + 1) * step
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    order = np.argsort(np.maximum(np.abs(gx), np.abs(gy)).ravel() * 10 + np.hypot(gx, gy).ravel(), kind="stable")
+    offsets = gx.ravel()[order], gy.ravel()[order]
+    for a in offsets:
+        a.flags.writeable = False
+    return offsets
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -575,5 +593,6 @@ def support_nav_points(supports: Sequence[Support], boxes: np.ndarray, lo: Vec3,
 
 def fitted_supports(candidates: Sequence[Support], boxes: np.ndarray) -> tuple[Support, ...]:
     """`fit_support` over a list, dropping the unusable ones."""
-    return tuple(f for f in (fit_support(s, boxes) for s in candidates) if f is not None)
+    aabbs = box_aabbs(boxes)  # once for the list: the same boxes for every support
+    return tuple(f for f in (fit_support(s, boxes, aabbs) for s in candidates) if f is not None)
 

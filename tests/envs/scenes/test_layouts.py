@@ -14,7 +14,7 @@ import torch
 from aerobench.envs.platforms import GRIPPER_PLATFORM
 from aerobench.envs.scenes import SCENE_GENERATORS, generate_layout
 from aerobench.envs.scenes.articulated import fixture_boxes, fixture_keepout_boxes, get_fixture_spec
-from aerobench.envs.scenes.furniture import box_aabbs, boxes_array, boxes_overlap, point_box_distance
+from aerobench.envs.scenes.furniture import box_aabbs, boxes_array, boxes_overlap, point_box_distance, rects_overlap
 from aerobench.envs.scenes.layout import Doorway, Room, SceneLayout
 from aerobench.envs.scenes.room_routes import RoomRoutes, first_doorways
 
@@ -137,6 +137,42 @@ def test_supports_usable(scene):
             ])
             near = (np.abs(arr[:, :2] - np.array(s.center)).max(-1) < 4.0) & (arr[:, 2] + arr[:, 5] > s.height + 0.2)
             assert point_box_distance(rims, arr[near]).min(initial=np.inf) > 0.0, (L.name, s.name)
+
+
+def _numpy_rects_overlap(a, b, gap=0.0) -> bool:
+    """The separating-axis test with numpy 2-vectors, as `rects_overlap` was first written."""
+    (ca, ha, ya), (cb, hb, yb) = a, b
+    ha = (ha[0] + gap, ha[1] + gap)
+    d = np.array([cb[0] - ca[0], cb[1] - ca[1]])
+    axes_a = [np.array([math.cos(ya), math.sin(ya)]), np.array([-math.sin(ya), math.cos(ya)])]
+    axes_b = [np.array([math.cos(yb), math.sin(yb)]), np.array([-math.sin(yb), math.cos(yb)])]
+    for axis in axes_a + axes_b:
+        ra = sum(h * abs(float(axis @ u)) for h, u in zip(ha, axes_a))
+        rb = sum(h * abs(float(axis @ u)) for h, u in zip(hb, axes_b))
+        if abs(float(axis @ d)) >= ra + rb:
+            return False
+    return True
+
+
+def test_the_rectangle_test_in_plain_floats_decides_as_the_numpy_one():
+    """`rects_overlap` works on Python floats (a layout makes thousands of tests); each of its decisions, and so the
+    layout each seed gives, is the numpy version's. Footprints on a 0.1 m grid, at quarter turns and touching,
+    put many tests on the boundary, where a different rounding would flip them."""
+    rng = np.random.default_rng(0)
+
+    def rect():
+        yaw = float(rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2, rng.uniform(-math.pi, math.pi)]))
+        grid = rng.random() < 0.5
+        centre = tuple(float(round(v, 1)) if grid else float(v) for v in rng.uniform(-2.0, 2.0, 2))
+        half = tuple(float(round(v, 1)) if grid else float(v) for v in rng.uniform(0.1, 1.0, 2))
+        return centre, half, yaw
+
+    decisions = []
+    for _ in range(20000):
+        a, b, gap = rect(), rect(), float(rng.choice([0.0, 0.02, 0.4]))
+        decisions.append(rects_overlap(a, b, gap))
+        assert decisions[-1] == _numpy_rects_overlap(a, b, gap), (a, b, gap)
+    assert 0.1 < np.mean(decisions) < 0.9  # both answers were tested
 
 
 @pytest.mark.parametrize("scene", SCENES)
