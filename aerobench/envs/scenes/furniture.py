@@ -372,13 +372,12 @@ def _hover_valid(points: np.ndarray, height: float, aabbs: np.ndarray) -> np.nda
     return ~hit.any(axis=1)
 
 
-def clear_height(support: Support, boxes: np.ndarray, aabbs: np.ndarray | None = None) -> float:
-    """Free height above a support's area: to the lowest box bottom above it (inf when nothing is above). `aabbs`:
-    `box_aabbs(boxes)`, where the caller has them."""
+def clear_height(support: Support, aabbs: np.ndarray) -> float:
+    """Free height above a support's area: to the lowest box bottom above it (inf when nothing is above); `aabbs`
+    are the boxes' bounds (`box_aabbs`)."""
     c, s = abs(math.cos(support.yaw)), abs(math.sin(support.yaw))
     ex = c * support.half_size[0] + s * support.half_size[1]
     ey = s * support.half_size[0] + c * support.half_size[1]
-    aabbs = box_aabbs(boxes) if aabbs is None else aabbs
     over = (
         (aabbs[:, 0] < support.center[0] + ex) & (aabbs[:, 3] > support.center[0] - ex)
         & (aabbs[:, 1] < support.center[1] + ey) & (aabbs[:, 4] > support.center[1] - ey)
@@ -387,11 +386,10 @@ def clear_height(support: Support, boxes: np.ndarray, aabbs: np.ndarray | None =
     return float(aabbs[over, 2].min() - support.height) if over.any() else math.inf
 
 
-def fit_support(support: Support, boxes: np.ndarray, aabbs: np.ndarray | None = None) -> Support | None:
+def fit_support(support: Support, aabbs: np.ndarray) -> Support | None:
     """Shrink a support until a hovering quadrotor clears every box over all of it (module docstring); None if
-    less than `MIN_SUPPORT_SIDE_M` a side is left or something sits lower than `CLEAR_HEIGHT_M` above it. `aabbs`:
-    `box_aabbs(boxes)`, where the caller has them."""
-    aabbs = box_aabbs(boxes) if aabbs is None else aabbs
+    less than `MIN_SUPPORT_SIDE_M` a side is left or something sits lower than `CLEAR_HEIGHT_M` above it. `aabbs`
+    are the boxes' bounds (`box_aabbs`)."""
     hx, hy = support.half_size
     if min(hx, hy) * 2 < MIN_SUPPORT_SIDE_M:
         return None
@@ -418,7 +416,7 @@ def fit_support(support: Support, boxes: np.ndarray, aabbs: np.ndarray | None = 
         center=(float(support.center[0] + c * lx - s * ly), float(support.center[1] + s * lx + c * ly)),
         half_size=(float((xs[i1] - xs[i0]) / 2), float((ys[j1] - ys[j0]) / 2)),
     )
-    above = clear_height(fitted, boxes, aabbs)
+    above = clear_height(fitted, aabbs)
     if above < CLEAR_HEIGHT_M:
         return None
     return replace(fitted, clear_height=above)
@@ -594,5 +592,5 @@ def support_nav_points(supports: Sequence[Support], boxes: np.ndarray, lo: Vec3,
 def fitted_supports(candidates: Sequence[Support], boxes: np.ndarray) -> tuple[Support, ...]:
     """`fit_support` over a list, dropping the unusable ones."""
     aabbs = box_aabbs(boxes)  # once for the list: the same boxes for every support
-    return tuple(f for f in (fit_support(s, boxes, aabbs) for s in candidates) if f is not None)
+    return tuple(f for f in (fit_support(s, aabbs) for s in candidates) if f is not None)
 
