@@ -10,7 +10,7 @@ row's ratios are to the bare steps of its own scene; with `--repeats`, the row's
 turn, the minimum of each kept. Then expert Pick episodes per minute on one core, and `aerobench
 train ppo` env steps per second (Pick, from scratch, the spec's 64-step windows) with K = 1 env and with K = 2
 worker processes (physx_cpu runs one env per process), the K's in turn for `--ppo-repeats` rounds, the best of each
-kept.
+kept. A first line says how this host prices a call after a pause (`bench/call_warmth.py`), which moves every ratio.
 
     python bench/step_cost.py [--steps 100] [--episodes 5] [--ppo-windows 8] [--ppo-envs 2] [--no-cameras] [--repeats 1]
                               [--ppo-repeats 3]
@@ -28,6 +28,7 @@ logging.getLogger("mani_skill").setLevel(logging.ERROR)
 
 import gymnasium as gym  # noqa: E402
 import torch  # noqa: E402
+from call_warmth import gap_rows  # noqa: E402 - a sibling script: bench/ is on the path of whatever runs this one
 
 import aerobench.envs  # noqa: E402,F401
 from aerobench.envs.platforms import CONTROL_HZ, PHYSICS_HZ  # noqa: E402
@@ -38,6 +39,17 @@ SEED = 0
 
 
 REPEATS = 1  # timings per row; the row reports their minimum (--repeats: other load can only add time)
+HOST_PAUSE_US = 40.0  # the pause before a probe call: a few physics steps' worth, as the 240 Hz hook and evaluate see
+
+
+def host_line(calls: int = 2000) -> str:
+    """How this host prices a call that has not run for a few tens of microseconds (`bench/call_warmth.py`): on
+    some hosts such a call costs several times its back-to-back price, whatever ran before it, and every Python-side
+    piece of a control step pays that, so the ratios below carry the host's share as well as the code's."""
+    hot, after = gap_rows([HOST_PAUSE_US], calls)["torch add"]
+    us, cold = after[HOST_PAUSE_US]
+    return (f"host: a torch add right after a {HOST_PAUSE_US:g} us pause costs {us / hot:.1f}x its back-to-back price, "
+            f"{cold:.0%} of calls cold (bench/call_warmth.py; where calls go cold, the ratios carry the host's share)")
 
 
 def per_step_ms(fn, steps: int, warmup: int = 5) -> float:
@@ -269,6 +281,7 @@ def main() -> None:
     torch.set_num_threads(1)
     print(f"physx_cpu, one env, one torch thread, {SUBSTEPS} physics steps per control step, {args.steps} control "
           f"steps per row")
+    print(host_line(), flush=True)
     print(f"{'row':<44} {'ms/step':>9} {'rest ms':>9} {'ratio':>7} {'replay ms':>10} {'ratio':>7} {'replay dev':>11}")
     reference, reference_bare = maniskill_reference_ms(args.steps)
     print(f"{'(b) ManiSkill PickCube-v1, state':<44} {reference:9.2f} {reference_bare:9.3f} "

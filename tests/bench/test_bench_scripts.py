@@ -191,10 +191,26 @@ def test_step_cost_prints_every_row_with_a_ratio_to_the_bare_scene(monkeypatch, 
         assert replay > 0 and replay_ratio == pytest.approx(ours / replay, rel=0.05)
         assert deviation <= 1e-5  # the replay followed the row's episode: the same states stepped bare
     assert "expert Pick episodes per minute on one core" in out and "(1/1 successful" in out
+    host = out.split("host: a torch add right after a 40 us pause costs ")[1]
+    assert float(host.split("x its back-to-back price")[0]) > 0 and "% of calls cold" in host
     assert float(out.split("AeroPick-v1 reset with a new layout: ")[1].split(" ms")[0]) > 0
     assert ppo_calls == [(1, 2), (2, 2)] * 3
     assert "the best of 3 runs in turn: K=1 120.0" in out
     assert "the best of 3 runs in turn: K=2 worker processes 230.0 (1.92x of K=1" in out
+
+
+def test_step_cost_host_line_reads_the_torch_add_after_the_pause(monkeypatch):
+    """The host line is call_warmth's torch add after a 40 us pause, against its back-to-back price."""
+    asked = []
+
+    def rows(gaps, n):
+        asked.append((gaps, n))
+        return {"torch add": (2.0, {40.0: (9.0, 0.875)}), "numpy add": (0.8, {40.0: (0.9, 0.0)})}
+
+    monkeypatch.setattr(step_cost, "gap_rows", rows)
+    line = step_cost.host_line(calls=50)
+    assert asked == [([40.0], 50)]
+    assert "costs 4.5x its back-to-back price, 88% of calls cold" in line
 
 
 def test_step_cost_ppo_rate_is_the_timed_windows_steps_over_their_time(monkeypatch):
