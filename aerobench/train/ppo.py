@@ -59,6 +59,7 @@ from .common import (
 )
 from .ppo_rollout import RESET_SEED_STRIDE, ActionDistribution, Collector, Fragment, SkillEnv
 from .ppo_rollout import state_dim as rollout_state_dim
+from .rewards import REWARD_KINDS
 from .rollout_workers import ProcessWorkers, RayWorkers
 
 EPISODES_FILE = "train_episodes.jsonl"
@@ -83,6 +84,8 @@ class PPOConfig:
                                                                  "normalization) from"})
     num_steps: int = field(default=64, metadata={"help": "rollout window per env (spec: 64)"})
     gamma: float = field(default=0.97, metadata={"help": "discount (spec: 0.97)"})
+    reward: str = field(default="potential", metadata={"help": "potential (progress as differences of a potential) "
+                        "or dense (progress paid at every step; aerobench.train.rewards)"})
     clip_coef: float = field(default=0.2, metadata={"help": "policy clip (spec: 0.2)"})
     gae_lambda: float = field(default=0.95, metadata={"help": "GAE lambda"})
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
@@ -148,6 +151,10 @@ class PPOConfig:
             raise ValueError("--bc-coef, --critic-warmup-steps and --bc-decay-steps must not be negative")
         if (self.bc_coef > 0 or self.critic_warmup_steps > 0) and not self.init_bc:
             raise ValueError("--bc-coef and --critic-warmup-steps apply to a BC-initialised run: add --init-bc DIR")
+        if self.reward not in REWARD_KINDS:
+            raise ValueError(f"--reward must be one of {', '.join(REWARD_KINDS)}, got {self.reward!r}")
+        if self.reward == "dense" and self.gamma >= 1:
+            raise ValueError("--reward dense pays a success what staying at the goal is worth: it needs --gamma below 1")
         if self.gripper not in GRIPPER_MODES:
             raise ValueError(f"--gripper must be one of {', '.join(GRIPPER_MODES)}, got {self.gripper!r}")
         self.state_fields = tuple(self.state_fields)
@@ -222,7 +229,7 @@ def _train_ppo(config: PPOConfig) -> Path:
         saved = read_config(checkpoint)
         if saved["algorithm"] != "ppo":
             raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
-        check_resumable(saved["train"], current, out, RESUMABLE_CHANGES)
+        check_resumable({"reward": "potential", **saved["train"]}, current, out, RESUMABLE_CHANGES)  # (older runs)
         train_state = load_train_state(checkpoint, out)
         if train_state["global_step"] >= config.total_steps:
             return checkpoint
@@ -341,8 +348,8 @@ def _train_ppo(config: PPOConfig) -> Path:
             episodes_done += 1
             step = window_start + (episode["step"] + 1) * N
             recent = (recent + [episode["success"]])[-SUCCESS_WINDOW:]
-            episode_log.write(json.dumps({"global_step": step, "episode": episodes_done, "success": episode["success"],
-                                          "return": episode["return"], "length": episode["length"]}) + "\n")
+            episode_log.write(json.dumps({"global_step": step, "episode": episodes_done, **{
+                k: episode[k] for k in ("success", "return", "length", "outcome", "peak_potential")}}) + "\n")
             log.add("charts/episodic_return", episode["return"], step)
             log.add("charts/episodic_length", episode["length"], step)
         if obs_rms is not None:  # from scratch: state statistics follow what the policy sees

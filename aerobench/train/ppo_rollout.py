@@ -160,6 +160,18 @@ class Fragment:
                         max(f.starts_bound for f in fragments))
 
 
+def episode_outcome(success: bool, fail_cause: int, truncated: bool) -> str:
+    """A finished training episode's outcome: "success", the failure cause's label (`envs.checks.FailureCause`), or
+    "truncated" (the time limit)."""
+    from ..envs.checks import FailureCause
+
+    if success:
+        return "success"
+    if fail_cause:
+        return FailureCause(fail_cause).label
+    return "truncated" if truncated else "ended"
+
+
 def input_frame(env: SkillEnv, obs: dict, inputs: InputSpec) -> torch.Tensor:
     """One frame `(N, F)` of the actor's state inputs from the env's observation `obs` (and its task state)."""
     task_state = env.task_state().cpu() if inputs.reads_task_state else None
@@ -190,6 +202,7 @@ class Collector:
         self.next_done = torch.zeros(n)
         self.prev_phi = potential(env.config.skill, self.info).cpu()
         self.ep_return, self.ep_length = torch.zeros(n), torch.zeros(n, dtype=torch.long)
+        self.ep_peak = self.prev_phi.clone().float()  # the episode's highest potential: how far it got
 
     def load_policy(self, policy: dict) -> None:
         """A worker's copy of the learner's policy: `{"actor", "critic", "log_std", "normalizer"}`."""
@@ -229,7 +242,8 @@ class Collector:
             sent = env_action(action, self.normalizer, self.model["gripper"],
                               close=action[:, -1] if self.binary else None)
             self.obs, _, terminated, truncated, self.info = env.env.step(sent.to(device))
-            r, phi, _ = reward(skill, self.info, self.prev_phi.to(device), sent.to(device))
+            r, phi, _ = reward(skill, self.info, self.prev_phi.to(device), sent.to(device), kind=env.config.reward,
+                               gamma=gamma)
             r, phi = r.cpu().float(), phi.cpu()
             terminated, truncated = terminated.cpu().bool(), truncated.cpu().bool()
             cut = truncated & ~terminated
@@ -239,18 +253,23 @@ class Collector:
                          "rewards": r, "dones": self.next_done, "values": value})
             self.ep_return += r
             self.ep_length += 1
+            self.ep_peak = torch.maximum(self.ep_peak, phi.float())
             done = terminated | truncated
             self.next_done = done.float()
             self.prev_phi = phi
             if done.any():
                 success = self.info["success"].cpu().bool()
+                causes = self.info["fail_cause"].cpu().tolist() if "fail_cause" in self.info else None
                 idx = done.nonzero()[:, 0]
                 episodes += [{"step": t, "row": i, "success": bool(success[i]), "return": float(self.ep_return[i]),
-                              "length": int(self.ep_length[i])} for i in idx.tolist()]
+                              "length": int(self.ep_length[i]), "outcome": episode_outcome(
+                                  bool(success[i]), causes[i] if causes else 0, bool(truncated[i])),
+                              "peak_potential": float(self.ep_peak[i])} for i in idx.tolist()]
                 self.ep_return[done], self.ep_length[done] = 0.0, 0
                 self.obs, self.info = env.reset_some(idx)
                 self.history.reset(idx)
                 self.prev_phi = torch.where(done, potential(skill, self.info).cpu(), self.prev_phi)
+                self.ep_peak = torch.where(done, self.prev_phi.float(), self.ep_peak)
         stacked = {name: torch.stack([row[name] for row in rows]) for name in rows[0] if name != "inputs"}
         inputs = {k: torch.stack([row["inputs"][k] for row in rows]) for k in rows[0]["inputs"]}
         return Fragment(inputs, **stacked, next_value=self._bootstrap_value(), next_done=self.next_done.clone(),

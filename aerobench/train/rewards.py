@@ -21,6 +21,14 @@ Potentials (higher is closer to done); each is a sum of signals the skill's eval
 | close | -tcp_to_handle + handle pinched + 2 (1 - articulation_progress) |
 
 Using differences of a potential keeps the shaping from changing which policy is optimal (Ng et al., 1999).
+
+`kind="dense"` pays progress at every step instead, as ManiSkill's dense rewards do: the same potential with each
+distance d mapped to closeness c(d) = (1 - tanh(d / 1 m) + 1 - tanh(d / 0.1 m)) / 2 in (0, 1] (a slope far away and
+a steep one within centimetres), divided by its maximum, so a step earns up to `w_progress`. The success term is
+then `w_progress / (1 - gamma)`, what staying in the best state forever is worth, so finishing never pays less than
+hovering at the goal; a failure also forfeits the steps it cuts off. A sum of differences pays at most the distance
+covered in all (under a metre), which the per-step penalties of a few hundred steps outweigh; the dense form pays
+for being close at every step (docs/experiments.md, "PPO from scratch on a CPU").
 """
 
 from __future__ import annotations
@@ -55,48 +63,76 @@ def _f(info: dict, key: str, skill: str) -> torch.Tensor:
     return info[key].float()
 
 
-def _pick(info, skill):
+def _negative(d: torch.Tensor) -> torch.Tensor:
+    return -d
+
+
+def closeness(d: torch.Tensor) -> torch.Tensor:
+    """(1 - tanh(d / 1 m) + 1 - tanh(d / 0.1 m)) / 2: 1 at the goal, a slope at a metre and a steep one at centimetres."""
+    return 1.0 - 0.5 * (torch.tanh(d) + torch.tanh(d / DENSE_NEAR_M))
+
+
+def _pick(info, skill, near):
     grasped = _f(info, "is_grasped", skill)
     lift = _f(info, "lift_height", skill).clamp(0.0, PICK_LIFT_M) / PICK_LIFT_M
-    return -_f(info, "tcp_to_grasp_point", skill) + grasped + 2.0 * lift * grasped
+    return near(_f(info, "tcp_to_grasp_point", skill)) + grasped + 2.0 * lift * grasped
 
 
-def _place(info, skill):
-    return (-_f(info, "goal_distance", skill) + _f(info, "is_support_contact", skill) + _f(info, "is_released", skill)
-            + _f(info, "is_gripper_clear", skill))
+def _place(info, skill, near):
+    return (near(_f(info, "goal_distance", skill)) + _f(info, "is_support_contact", skill)
+            + _f(info, "is_released", skill) + _f(info, "is_gripper_clear", skill))
 
 
-def _nav(info, skill):
-    return -_f(info, "nav_distance", skill)
+def _nav(info, skill, near):
+    return near(_f(info, "nav_distance", skill))
 
 
-def _open(info, skill):
-    return -_f(info, "tcp_to_handle", skill) + _f(info, "is_handle_pinched", skill) + 2.0 * _f(info, "articulation_progress", skill)
+def _open(info, skill, near):
+    return near(_f(info, "tcp_to_handle", skill)) + _f(info, "is_handle_pinched", skill) + 2.0 * _f(info, "articulation_progress", skill)
 
 
-def _close(info, skill):
+def _close(info, skill, near):
     progress = 1.0 - _f(info, "articulation_progress", skill)
-    return -_f(info, "tcp_to_handle", skill) + _f(info, "is_handle_pinched", skill) + 2.0 * progress
+    return near(_f(info, "tcp_to_handle", skill)) + _f(info, "is_handle_pinched", skill) + 2.0 * progress
 
 
 POTENTIALS = {"pick": _pick, "place": _place, "nav": _nav, "open": _open, "close": _close}
+PEAK = {"pick": 4.0, "place": 4.0, "nav": 1.0, "open": 4.0, "close": 4.0}  # each potential's value at its goal
+REWARD_KINDS = ("potential", "dense")
+DENSE_NEAR_M = 0.1
+
+
+def _check(skill: str) -> None:
+    if skill not in POTENTIALS:
+        raise ValueError(f"no PPO reward for skill {skill!r}; valid: {', '.join(POTENTIALS)}")
 
 
 def potential(skill: str, info: dict) -> torch.Tensor:
     """phi `(N,)` of the table above."""
-    if skill not in POTENTIALS:
-        raise ValueError(f"no PPO reward for skill {skill!r}; valid: {', '.join(POTENTIALS)}")
-    return POTENTIALS[skill](info, skill)
+    _check(skill)
+    return POTENTIALS[skill](info, skill, _negative)
+
+
+def dense_progress(skill: str, info: dict) -> torch.Tensor:
+    """The dense reward's progress `(N,)` in (0, 1]: phi with closeness for minus distance, over its goal value."""
+    _check(skill)
+    return POTENTIALS[skill](info, skill, closeness) / PEAK[skill]
 
 
 def reward(skill: str, info: dict, prev_potential: torch.Tensor, action: torch.Tensor,
-           weights: RewardWeights = RewardWeights()) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
-    """(reward `(N,)`, this step's potential (pass it back next step), the terms by name for logging)."""
+           weights: RewardWeights = RewardWeights(), kind: str = "potential",
+           gamma: float = 0.97) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
+    """(reward `(N,)`, this step's potential (pass it back next step), the terms by name for logging). `kind`:
+    "potential" (differences of phi, success `w_success`) or "dense" (progress at every step, success worth
+    staying at the goal forever under `gamma`)."""
+    if kind not in REWARD_KINDS:
+        raise ValueError(f"unknown reward kind {kind!r}; valid: {', '.join(REWARD_KINDS)}")
     phi = potential(skill, info)
     w = weights
+    dense = kind == "dense"
     terms = {
-        "progress": w.progress * (phi - prev_potential),
-        "success": w.success * _f(info, "success", skill),
+        "progress": w.progress * (dense_progress(skill, info) if dense else phi - prev_potential),
+        "success": (w.progress / (1.0 - gamma) if dense else w.success) * _f(info, "success", skill),
         "fail": -w.fail * _f(info, "fail", skill),
         "tilt": -w.tilt * (_f(info, "tilt", skill) - w.tilt_soft_rad).clamp_min(0.0),
         "altitude": -w.altitude * (w.altitude_floor_m - _f(info, "altitude", skill)).clamp_min(0.0),

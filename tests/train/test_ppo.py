@@ -12,13 +12,14 @@ from pathlib import Path
 import pytest
 import torch
 
+from aerobench.envs.checks import FailureCause
 from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.learned import load_weights
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
 from aerobench.train.bc import BCConfig, train_bc
 from aerobench.train.common import read_scalars, torch_threads
 from aerobench.train.ppo import PPOConfig, train_ppo
-from aerobench.train.rewards import RewardWeights, potential, reward
+from aerobench.train.rewards import RewardWeights, closeness, potential, reward
 
 BIN = Path(sys.executable).parent
 
@@ -69,6 +70,27 @@ def test_reward_terms_on_hand_built_infos():
         potential("place", near)
 
 
+def test_dense_reward_pays_closeness_every_step_and_a_success_worth_staying():
+    w, zero = RewardWeights(), torch.zeros(2, 5)
+    d = torch.tensor([0.0, 0.05, 0.3, 1.0])
+    c = closeness(d)
+    assert c[0] == 1.0 and bool((c[1:] < c[:-1]).all()) and bool((c > 0).all())  # 1 at the goal, falling with d
+    far, near = _info(tcp_to_grasp_point=0.5), _info(tcp_to_grasp_point=0.05)
+    r_far, phi, t_far = reward("pick", far, potential("pick", far), zero, kind="dense")
+    r_near, _, _ = reward("pick", near, potential("pick", far), zero, kind="dense")
+    assert torch.allclose(phi, torch.full((2,), -0.5))  # the potential (and its diagnostics) stay the same
+    assert bool((r_near > r_far).all()) and bool((r_far > 0).all())  # paid for being close, whatever came before
+    assert torch.allclose(t_far["progress"], closeness(torch.tensor(0.5)) / 4 * torch.ones(2))
+    done = _info(tcp_to_grasp_point=0.0, is_grasped=1.0, lift_height=0.5, success=1.0)
+    _, _, t = reward("pick", done, potential("pick", done), zero, kind="dense", gamma=0.97)
+    assert torch.allclose(t["progress"], torch.ones(2) * w.progress)  # the goal's value is the step's maximum
+    assert torch.allclose(t["success"], torch.full((2,), w.progress / 0.03))
+    with pytest.raises(ValueError, match="valid: potential, dense"):
+        reward("pick", far, phi, zero, kind="shaped")
+    with pytest.raises(ValueError, match="needs --gamma below 1"):
+        PPOConfig(setting="TidyHouse", skill="pick", out="x", reward="dense", gamma=1.0)
+
+
 def _config(out: Path, total: int, **kw) -> PPOConfig:
     return PPOConfig(setting="TidyHouse", skill="pick", objects=("master_chef_can",), out=str(out), total_steps=total,
                      seed=kw.pop("seed", 0), max_episode_steps=24, update_epochs=2, hidden=(32, 32), save_every=1,
@@ -90,7 +112,12 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     first = read_jsonl(a / "train_episodes.jsonl")
     assert first == read_jsonl(b / "train_episodes.jsonl")
     assert len(first) >= 2 and all(r["length"] <= 24 for r in first)  # 24-step episodes end inside a 64-step window
-    assert set(first[0]) == {"global_step", "episode", "success", "return", "length"}
+    assert set(first[0]) == {"global_step", "episode", "success", "return", "length", "outcome", "peak_potential"}
+    labels = {"success", "truncated"} | {c.label for c in FailureCause if c}
+    assert all(r["outcome"] in labels and (r["outcome"] == "success") == r["success"] for r in first)
+    assert all(r["outcome"] == "truncated" for r in first if r["length"] == 24)  # the time limit, not a failure
+    assert all(r["outcome"] not in ("success", "truncated") for r in first if r["length"] < 24)
+    assert all(-3.0 < r["peak_potential"] < 4.0 for r in first)  # pick: -distance + grasped + 2 x lift
 
     # an interrupted run logged a line after its checkpoint: the resumed run redoes that window instead of keeping it
     with open(b / "train_episodes.jsonl", "a") as f:
@@ -111,6 +138,16 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     train_ppo(_config(c, 64, seed=1))
     wc = load_weights(c / "checkpoint")
     assert any(not torch.equal(wa[k], wc[k]) for k in wa), "another seed must give other weights"
+
+    # the dense reward: the same starts (same seed), every step paid for closeness, recorded with the run
+    d = tmp_path / "d"
+    train_ppo(_config(d, 64, reward="dense"))
+    dense = read_jsonl(d / "train_episodes.jsonl")
+    assert [r["length"] for r in dense[:1]] == [r["length"] for r in first[:1]]  # same policy until the first update
+    assert all(r["return"] != f["return"] for r, f in zip(dense[:1], first[:1]))
+    assert json.loads((d / "checkpoint" / "config.json").read_text())["train"]["reward"] == "dense"
+    with pytest.raises(ValueError, match="reward differ"):
+        train_ppo(_config(d, 128))  # resumed with the other reward: refused
 
 
 def _bc_from_one_short_expert_episode(root: Path, max_steps: int, cameras: bool, **bc) -> Path:
