@@ -220,7 +220,8 @@ def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
 
 
 def ppo_training_episodes(out: Path) -> list[dict]:
-    """PPO's `train_episodes.jsonl` rows (global_step, episode, success, return, length), in order."""
+    """PPO's `train_episodes.jsonl` rows (global_step, episode, success, return, length, and since 2026-11-30 outcome
+    and peak_potential), in order."""
     path = out / "train_episodes.jsonl"
     if not path.is_file():
         raise ValueError(f"{path} is missing: the PPO trainer writes one line per finished training episode there")

@@ -21,6 +21,7 @@ import call_warmth  # noqa: E402
 import descent_onset  # noqa: E402
 import diversity  # noqa: E402
 import learning_curves  # noqa: E402
+import ppo_progress  # noqa: E402
 import release_aliasing  # noqa: E402
 import step_cost  # noqa: E402
 import step_floor  # noqa: E402
@@ -42,6 +43,32 @@ def _finite_estimate(est) -> bool:
 def test_moving_average_is_a_trailing_window():
     ma = learning_curves.moving_average(np.array([1, 0, 0, 1, 1, 1]), window=2)
     assert ma == pytest.approx([1, 0.5, 0, 0.5, 1, 1])
+
+
+def test_ppo_progress_bins_a_run_by_interactions_and_reads_the_pick_potential(tmp_path, capsys):
+    assert ppo_progress.default_bins(120_000) == [0, 50_000, 100_000, 150_000]
+    assert ppo_progress.default_bins(1_200_000)[-3:] == [900_000, 1_000_000, 1_500_000]
+    run = tmp_path / "run"
+    (run / "checkpoint").mkdir(parents=True)
+    (run / "checkpoint" / "config.json").write_text(json.dumps({"train": {"skill": "pick"}}))
+    rows = [  # (global step, outcome, length, peak potential)
+        (10, "collision", 30, -0.6), (20, "collision", 40, -0.4), (30, "truncated", 400, -0.2),
+        (60, "truncated", 400, -0.04), (70, "success", 150, 2.9), (80, "collision", 90, 0.8)]
+    with open(run / "train_episodes.jsonl", "w") as f:
+        for i, (step, outcome, length, peak) in enumerate(rows):
+            f.write(json.dumps({"global_step": step, "episode": i + 1, "success": outcome == "success", "return": 0.0,
+                                "length": length, "outcome": outcome, "peak_potential": peak}) + "\n")
+    first, second = ppo_progress.progress_rows(ppo_progress.ppo_training_episodes(run), [0, 50, 100], "pick")
+    assert (first["episodes"], first["successes"], first["median_length"]) == (3, 0, 40)
+    assert first["collision"] == pytest.approx(2 / 3) and first["truncated"] == pytest.approx(1 / 3)
+    assert first["median_closest_m"] == pytest.approx(0.4) and first["within_5cm"] == 0 and first["grasped"] == 0
+    assert (second["episodes"], second["successes"], second["grasped"]) == (3, 1, 2)
+    assert second["median_closest_m"] == 0.0 and second["within_5cm"] == 1.0
+    ppo_progress.main([str(run), "--bins", "0,50,100", "--png", str(tmp_path / "p.png")])
+    out = capsys.readouterr().out
+    assert "6 episodes to step 80, skill pick" in out and "median closest  40.0 cm" in out and _is_png(tmp_path / "p.png")
+    with pytest.raises(SystemExit):
+        ppo_progress.main([str(tmp_path / "missing")])
 
 
 def test_phase_boundaries_from_events_and_gripper_command():

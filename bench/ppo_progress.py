@@ -1,0 +1,138 @@
+"""How far a PPO run's training episodes get, by interactions: read while it runs, or after.
+
+`aerobench train ppo` appends every finished training episode to `RUN/train_episodes.jsonl` with its outcome and its
+peak progress potential (`aerobench.train.rewards.potential`). Before the first success, the success rate says
+nothing about whether a run is learning; the peak potential does. For Pick it is minus the closest the tool centre
+point came to the grasp point, and above 0.5 once the object was grasped. This script prints, per bin of
+interactions:
+
+- the episodes that ended in it, their successes, and the share truncated by the time limit and ending in a collision;
+- the median episode length;
+- the median peak potential: for Pick, the median closest approach in cm, the share of episodes within 5 cm, and
+  the episodes that grasped.
+
+With `--png` it also draws the spec's PPO curve: training success as a moving average over the last 400 episodes
+(spec Fig. `learning_curves`) against interactions, with the median peak potential beside it.
+
+    python bench/ppo_progress.py RUN [--bins 0,50000,100000,...] [--png RUN/progress.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from collections import Counter
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from learning_curves import moving_average, ppo_training_episodes  # noqa: E402
+
+SPEC_WINDOW = 400  # the spec's moving-average window (Fig. learning_curves)
+NEAR_M = 0.05
+GRASPED_POTENTIAL = 0.5  # Pick's potential is -distance + grasped + 2 x lift: above this only while grasped
+
+
+def default_bins(last_step: int) -> list[int]:
+    """Bin edges: 50k wide up to 200k, 100k wide up to 1M, then 500k wide, up to the last logged step."""
+    edges, step = [0], 0
+    while step < last_step:
+        step += 50_000 if step < 200_000 else 100_000 if step < 1_000_000 else 500_000
+        edges.append(step)
+    return edges
+
+
+def skill_of(run: Path) -> str | None:
+    """The run's skill, from its checkpoint's config (None where the run has not written one yet)."""
+    path = run / "checkpoint" / "config.json"
+    return json.loads(path.read_text())["train"]["skill"] if path.is_file() else None
+
+
+def progress_rows(episodes: list[dict], edges: list[int], skill: str | None) -> list[dict]:
+    """One summary per bin `(edges[i], edges[i + 1]]` of global steps that has episodes."""
+    rows = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        chunk = [e for e in episodes if lo < e["global_step"] <= hi]
+        if not chunk:
+            continue
+        outcomes = Counter(e.get("outcome", "?") for e in chunk)
+        n = len(chunk)
+        row = {"from": lo, "to": hi, "episodes": n, "successes": sum(bool(e["success"]) for e in chunk),
+               "truncated": outcomes["truncated"] / n, "collision": outcomes["collision"] / n,
+               "median_length": statistics.median(e["length"] for e in chunk), "outcomes": dict(outcomes.most_common())}
+        peaks = [e["peak_potential"] for e in chunk if "peak_potential" in e]
+        if peaks:
+            row["median_peak_potential"] = statistics.median(peaks)
+            if skill == "pick":
+                row["median_closest_m"] = max(-row["median_peak_potential"], 0.0)
+                row["within_5cm"] = sum(p > -NEAR_M for p in peaks) / len(peaks)
+                row["grasped"] = sum(p > GRASPED_POTENTIAL for p in peaks)
+        rows.append(row)
+    return rows
+
+
+def format_row(row: dict) -> str:
+    text = (f"{row['from'] / 1000:>6g}k-{row['to'] / 1000:g}k  {row['episodes']:5d} episodes, {row['successes']:4d} "
+            f"successes, truncated {100 * row['truncated']:5.1f}%, collision {100 * row['collision']:5.1f}%, "
+            f"median length {row['median_length']:5.0f}")
+    if "median_closest_m" in row:
+        text += (f", median closest {100 * row['median_closest_m']:5.1f} cm, within 5 cm "
+                 f"{100 * row['within_5cm']:5.1f}%, grasped {row['grasped']}")
+    elif "median_peak_potential" in row:
+        text += f", median peak potential {row['median_peak_potential']:.3f}"
+    return text
+
+
+def plot(episodes: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    steps = np.array([e["global_step"] for e in episodes], float)
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    ax.plot(steps, moving_average(np.array([float(e["success"]) for e in episodes]), SPEC_WINDOW), color="C1",
+            label=f"training success ({SPEC_WINDOW}-episode moving average)")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xlabel("environment interactions")
+    ax.set_ylabel("success")
+    if all("peak_potential" in e for e in episodes):
+        twin = ax.twinx()
+        twin.plot(steps, moving_average(np.array([e["peak_potential"] for e in episodes]), SPEC_WINDOW),
+                  color="C0", alpha=0.7, label="peak progress potential (moving average)")
+        twin.set_ylabel("peak progress potential")
+        twin.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper left")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", type=Path, help="the PPO run folder (aerobench train ppo --out)")
+    parser.add_argument("--bins", help="comma-separated global-step edges (default: 50k, then 100k, then 500k wide)")
+    parser.add_argument("--png", type=Path, help="also draw the training-success curve here")
+    args = parser.parse_args(argv)
+    try:
+        episodes = ppo_training_episodes(args.run)
+    except ValueError as e:
+        parser.error(str(e))
+    if not episodes:
+        parser.error(f"{args.run / 'train_episodes.jsonl'} has no finished episode yet")
+    edges = [int(v) for v in args.bins.split(",")] if args.bins else default_bins(episodes[-1]["global_step"])
+    skill = skill_of(args.run)
+    print(f"{args.run}: {len(episodes)} episodes to step {episodes[-1]['global_step']}, skill {skill or 'unknown'}")
+    for row in progress_rows(episodes, edges, skill):
+        print(format_row(row))
+    if args.png:
+        plot(episodes, args.png, f"{args.run.name}: {skill or ''} PPO, {episodes[-1]['global_step']} interactions")
+        print(f"wrote {args.png}")
+
+
+if __name__ == "__main__":
+    main()
