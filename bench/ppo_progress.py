@@ -14,13 +14,18 @@ interactions:
 With `--png` it also draws the spec's PPO curve: training success as a moving average over the last 400 episodes
 (spec Fig. `learning_curves`) against interactions, with the median peak potential beside it.
 
-    python bench/ppo_progress.py RUN [--bins 0,50000,100000,...] [--png RUN/progress.png]
+`--gripper-probe K` (Pick) runs K episodes with the run's checkpoint as training acts (sampled actions, new starts
+from seed 777) and prints, by distance of the tool centre point to the grasp point, the median probability the actor
+gives "close" and its median vertical command: whether it arrives with the gripper open and lifts once it holds.
+
+    python bench/ppo_progress.py RUN [--bins 0,50000,100000,...] [--png RUN/progress.png] [--gripper-probe 8]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 from collections import Counter
@@ -112,11 +117,67 @@ def plot(episodes: list[dict], path: Path, title: str) -> None:
     plt.close(fig)
 
 
+PROBE_SEED = 777
+PROBE_BANDS = ((0.10, math.inf, "farther than 10 cm, not grasped"), (0.03, 0.10, "3-10 cm, not grasped"),
+               (0.0, 0.03, "within 3 cm, not grasped"))
+
+
+def gripper_probe(run: Path, episodes: int) -> list[dict]:
+    """Per step of `episodes` sampled Pick episodes of the run's checkpoint: distance to the grasp point, grasped,
+    the actor's probability of "close", the sent vertical command (normalized) and the object's lift."""
+    import torch
+
+    from aerobench.policies.inputs import FrameHistory, InputSpec
+    from aerobench.policies.learned import env_action, load_actor, load_weights
+    from aerobench.train.ppo import PPOConfig
+    from aerobench.train.ppo_rollout import ActionDistribution, SkillEnv, input_frame
+
+    checkpoint = run / "checkpoint"
+    meta, actor, normalizer = load_actor(checkpoint)
+    model, train = meta["model"], meta["train"]
+    if train["skill"] != "pick" or model["gripper"] != "binary":
+        raise ValueError("--gripper-probe reads a Pick run with the binary gripper")
+    log_std, inputs = load_weights(checkpoint)["log_std"], InputSpec.from_dict(model["inputs"])
+    config = PPOConfig(setting=train["setting"], skill="pick", out=str(run), seed=PROBE_SEED, objects=train["objects"],
+                       platform=train["platform"], controller=train["controller"],
+                       max_episode_steps=train["max_episode_steps"], progress=False)
+    env = SkillEnv(config, "state_dict", 1)
+    history, steps = FrameHistory(inputs.history), []
+    torch.manual_seed(PROBE_SEED)
+    for _ in range(episodes):
+        obs, _ = env.reset_all()
+        history.reset(torch.arange(1))
+        done = False
+        while not done:
+            with torch.no_grad():
+                out = actor({"state": normalizer.state(history.push(input_frame(env, obs, inputs)))})
+                action = ActionDistribution(out, log_std, binary=True).sample()
+            sent = env_action(action, normalizer, "binary", close=action[:, -1])
+            obs, _, terminated, truncated, info = env.env.step(sent)
+            steps.append({"distance": float(info["tcp_to_grasp_point"][0]), "grasped": bool(info["is_grasped"][0]),
+                          "p_close": float(torch.sigmoid(out[0, -1])), "vz": float(sent[0, 2]),
+                          "lift": float(info["lift_height"][0])})
+            done = bool(terminated[0] | truncated[0])
+    env.close()
+    return steps
+
+
+def probe_rows(steps: list[dict]) -> list[dict]:
+    """The probe's steps summarized per distance band, then the grasped ones."""
+    groups = [(label, [s for s in steps if not s["grasped"] and lo <= s["distance"] < hi]) for lo, hi, label in PROBE_BANDS]
+    groups.append(("grasped", [s for s in steps if s["grasped"]]))
+    return [{"group": label, "steps": len(sel), "p_close": statistics.median(s["p_close"] for s in sel),
+             "vz": statistics.median(s["vz"] for s in sel), "max_lift_m": max(s["lift"] for s in sel)}
+            for label, sel in groups if sel]
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", type=Path, help="the PPO run folder (aerobench train ppo --out)")
     parser.add_argument("--bins", help="comma-separated global-step edges (default: 50k, then 100k, then 500k wide)")
     parser.add_argument("--png", type=Path, help="also draw the training-success curve here")
+    parser.add_argument("--gripper-probe", type=int, default=0, metavar="K",
+                        help="Pick: also run K sampled episodes of the checkpoint and print where it closes and lifts")
     args = parser.parse_args(argv)
     try:
         episodes = ppo_training_episodes(args.run)
@@ -132,6 +193,12 @@ def main(argv: list[str] | None = None) -> None:
     if args.png:
         plot(episodes, args.png, f"{args.run.name}: {skill or ''} PPO, {episodes[-1]['global_step']} interactions")
         print(f"wrote {args.png}")
+    if args.gripper_probe > 0:
+        steps = gripper_probe(args.run, args.gripper_probe)
+        print(f"gripper probe: {args.gripper_probe} sampled episodes, {len(steps)} steps (seed {PROBE_SEED})")
+        for row in probe_rows(steps):
+            print(f"  {row['group']:<32} {row['steps']:5d} steps, p(close) median {row['p_close']:.2f}, vertical "
+                  f"command median {row['vz']:+.2f}, object lifted up to {100 * row['max_lift_m']:.1f} cm")
 
 
 if __name__ == "__main__":

@@ -71,6 +71,21 @@ def test_ppo_progress_bins_a_run_by_interactions_and_reads_the_pick_potential(tm
         ppo_progress.main([str(tmp_path / "missing")])
 
 
+def test_ppo_progress_gripper_probe_acts_with_a_real_checkpoint(tmp_path):
+    from aerobench.train.ppo import PPOConfig, train_ppo
+
+    run = tmp_path / "ppo"
+    train_ppo(PPOConfig(setting="TidyHouse", skill="pick", objects=("master_chef_can",), out=str(run), total_steps=64,
+                        max_episode_steps=24, update_epochs=1, hidden=(16, 16), progress=False))
+    steps = ppo_progress.gripper_probe(run, episodes=2)
+    assert 2 <= len(steps) <= 48  # two episodes of at most the run's 24 steps (a failure ends one sooner)
+    assert all(0.0 < s["p_close"] < 1.0 and -1.0 <= s["vz"] <= 1.0 and s["distance"] >= 0.0 for s in steps)
+    rows = ppo_progress.probe_rows(steps)
+    assert sum(r["steps"] for r in rows) == len(steps) and rows[0]["group"].startswith("farther than 10 cm")
+    grasped = ppo_progress.probe_rows([{**steps[0], "grasped": True, "lift": 0.02}])
+    assert [(r["group"], r["steps"], r["max_lift_m"]) for r in grasped] == [("grasped", 1, 0.02)]
+
+
 def test_phase_boundaries_from_events_and_gripper_command():
     t = 12
     events = np.zeros((t, len(EVENT_FLAGS)), np.float32)
