@@ -229,7 +229,8 @@ def _train_ppo(config: PPOConfig) -> Path:
         saved = read_config(checkpoint)
         if saved["algorithm"] != "ppo":
             raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
-        check_resumable({"reward": "potential", **saved["train"]}, current, out, RESUMABLE_CHANGES)  # (older runs)
+        # a run saved before `--reward` existed trained with the potential reward
+        check_resumable({"reward": "potential", **saved["train"]}, current, out, RESUMABLE_CHANGES)
         train_state = load_train_state(checkpoint, out)
         if train_state["global_step"] >= config.total_steps:
             return checkpoint

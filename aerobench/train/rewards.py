@@ -42,6 +42,8 @@ from ..envs.checks import SafetyLimits
 from ..envs.skills.pick import PICK_LIFT_M
 
 SAFETY = SafetyLimits()
+REWARD_KINDS = ("potential", "dense")
+DENSE_NEAR_M = 0.1  # the dense closeness's steep scale: centimetres matter at the grasp (a can's side room is 4 mm)
 
 
 @dataclass(frozen=True)
@@ -98,8 +100,6 @@ def _close(info, skill, near):
 
 POTENTIALS = {"pick": _pick, "place": _place, "nav": _nav, "open": _open, "close": _close}
 PEAK = {"pick": 4.0, "place": 4.0, "nav": 1.0, "open": 4.0, "close": 4.0}  # each potential's value at its goal
-REWARD_KINDS = ("potential", "dense")
-DENSE_NEAR_M = 0.1
 
 
 def _check(skill: str) -> None:

@@ -122,6 +122,9 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     # an interrupted run logged a line after its checkpoint: the resumed run redoes that window instead of keeping it
     with open(b / "train_episodes.jsonl", "a") as f:
         f.write(json.dumps({"global_step": 70, "episode": 99, "success": True, "return": 0.0, "length": 1}) + "\n")
+    saved = json.loads((b / "checkpoint" / "config.json").read_text())
+    del saved["train"]["reward"]  # as a run saved before --reward existed: it trained with the potential reward
+    (b / "checkpoint" / "config.json").write_text(json.dumps(saved))
     train_ppo(_config(b, 128))
     state = _state(b)
     assert (state["global_step"], state["iteration"]) == (128, 2)
