@@ -68,6 +68,7 @@ class Budget:
     max_steps: int | None = None  # truncate held-out and PPO training episodes (smoke tests; collection runs in full)
     transition_budget: int | None = None  # one more BC point: the leading demos of all rounds within this many frames
     action_noise: float = 0.0  # DART noise on the collection rounds' executed flight commands (aerobench.rollout.noise)
+    ppo_recipe: str = "spec"  # PPO_RECIPES
 
     def __post_init__(self):
         if self.skill not in SKILLS:
@@ -81,11 +82,22 @@ class Budget:
         check_action_noise(self.action_noise)
         if self.transition_budget is not None and self.transition_budget < 1:
             raise ValueError(f"--transition-budget must be a positive integer, got {self.transition_budget}")
+        if self.ppo_recipe not in PPO_RECIPES:
+            raise ValueError(f"--ppo-recipe must be one of {', '.join(PPO_RECIPES)}, got {self.ppo_recipe!r}")
         for name in ("rollouts_per_round", "bc_steps", "eval_per_object", "window"):
             if getattr(self, name) < 1:
                 raise ValueError(f"--{name.replace('_', '-')} must be at least 1, got {getattr(self, name)}")
 
 
+# PPO from scratch. "spec": the trainer's defaults, the spec's reference configuration (64-step windows, gamma 0.97,
+# clip 0.2), which the spec runs on a GPU batch of envs. "cpu": what learned on two CPU envs (docs/experiments.md, "PPO
+# from scratch on a CPU"): 1024-step windows (2,048 samples per update, the batch of 32 GPU envs at 64 steps), the
+# dense reward, and the finger state among the inputs.
+PPO_RECIPES = {
+    "spec": {},
+    "cpu": dict(reward="dense", num_steps=1024, num_minibatches=32, update_epochs=4,
+                state_fields=("finger_position", "finger_velocity")),
+}
 SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
 SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
 
@@ -213,7 +225,7 @@ def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
     ckpt = Path(train_ppo(PPOConfig(setting=budget.setting, skill=budget.skill, objects=budget.objects, out=str(out),
                                     total_steps=budget.ppo_steps, seed=budget.seed, init_bc=None,
                                     num_envs=max(1, budget.workers), max_episode_steps=budget.max_steps,
-                                    progress=False)))
+                                    progress=False, **PPO_RECIPES[budget.ppo_recipe])))
     elapsed = time.monotonic() - started
     _mark_done(out, ckpt, elapsed)
     return ckpt, elapsed
@@ -302,7 +314,8 @@ def run(budget: Budget, out: Path) -> dict:
         summary["ppo"] = None
         return summary
 
-    ppo_dir = out / "ppo" / (f"steps{budget.ppo_steps}_seed{budget.seed}" + (f"_max{budget.max_steps}" if budget.max_steps else ""))
+    ppo_dir = out / "ppo" / (f"steps{budget.ppo_steps}_seed{budget.seed}" + (f"_max{budget.max_steps}" if budget.max_steps else "")
+                             + (f"_{budget.ppo_recipe}" if budget.ppo_recipe != "spec" else ""))
     print(f"PPO from scratch, {budget.ppo_steps} interactions -> {ppo_dir}", flush=True)
     ckpt, train_s = train_ppo_checkpoint(budget, ppo_dir)
     episodes = ppo_training_episodes(ppo_dir)
@@ -431,6 +444,9 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
     parser.add_argument("--action-noise", type=float, default=0.0,
                         help="collect the rounds with DART noise of this std on the executed flight commands (the "
                              "demonstrations keep the expert's own actions); held-out evaluations run without noise")
+    parser.add_argument("--ppo-recipe", default="spec", choices=tuple(PPO_RECIPES),
+                        help="PPO from scratch: spec (the spec's reference configuration, the trainer's defaults) or "
+                             "cpu (1024-step windows, the dense reward, finger state: what learned on two CPU envs)")
     parser.add_argument("--spec-scale", action="store_true",
                         help="the spec's budget: rounds 1,2,4,8 of 256 rollouts, 20k BC steps, 5M PPO interactions, "
                              "50 held-out episodes per object (explicit flags still win)")
@@ -449,6 +465,7 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
         budget = Budget(setting=args.setting, skill=args.skill, objects=objects, window=args.window, seed=args.seed,
                         bc_seeds=args.bc_seeds, workers=args.workers, max_steps=args.max_steps,
                         transition_budget=args.transition_budget, action_noise=args.action_noise,
+                        ppo_recipe=args.ppo_recipe,
                         **{**base, **given})
     except ValueError as e:
         parser.error(str(e))

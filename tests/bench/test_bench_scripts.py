@@ -112,6 +112,9 @@ def test_bad_flags_are_one_line_errors(capsys):
         learning_curves.parse_budget(["--objects", "anvil"])
     assert "valid objects" in capsys.readouterr().err
     with pytest.raises(SystemExit):
+        learning_curves.parse_budget(["--ppo-recipe", "gpu"])
+    assert "invalid choice: 'gpu'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
         call_warmth.main(["--gaps", "0,ten", "--no-env"])
     assert "comma-separated microseconds" in capsys.readouterr().err
 
@@ -163,6 +166,14 @@ def test_learning_curves_end_to_end_and_resume(learning_curves_run):
     row = capped["bc"][2]
     assert row["transition_budget"] == cap and row["transitions"] == saved["bc"][0]["transitions"] and row["demos"] == 1
     assert row["held_out"]["n"] == 1 and Path(row["checkpoint"]).is_dir() and row["checkpoint"] != saved["bc"][1]["checkpoint"]
+
+    # the CPU recipe trains its own PPO run beside the spec's (BC rows and datasets reused)
+    cpu = learning_curves.main(args + ["--ppo-recipe", "cpu"])
+    assert [outcome(r) for r in cpu["bc"]] == [outcome(r) for r in summary["bc"]]
+    assert Path(cpu["ppo"]["checkpoint"]).parent.name.endswith("_cpu") and cpu["ppo"]["held_out"]["n"] == 1
+    train = json.loads((Path(cpu["ppo"]["checkpoint"]) / "config.json").read_text())["train"]
+    assert (train["reward"], train["num_steps"], train["state_fields"]) == ("dense", 1024, ["finger_position", "finger_velocity"])
+    assert cpu["ppo"]["interactions"] > 100 and cpu["ppo"]["episodes"] >= 1 and cpu["budget"]["ppo_recipe"] == "cpu"
 
 
 def test_diversity_end_to_end(learning_curves_run, tmp_path):
