@@ -128,9 +128,9 @@ def gripper_probe(run: Path, episodes: int) -> list[dict]:
     import torch
 
     from aerobench.policies.inputs import FrameHistory, InputSpec
-    from aerobench.policies.learned import env_action, load_actor, load_weights
+    from aerobench.policies.learned import load_actor, load_weights
     from aerobench.train.ppo import PPOConfig
-    from aerobench.train.ppo_rollout import ActionDistribution, SkillEnv, input_frame
+    from aerobench.train.ppo_rollout import SkillEnv, input_frame, sample_action
 
     checkpoint = run / "checkpoint"
     meta, actor, normalizer = load_actor(checkpoint)
@@ -149,10 +149,8 @@ def gripper_probe(run: Path, episodes: int) -> list[dict]:
         history.reset(torch.arange(1))
         done = False
         while not done:
-            with torch.no_grad():
-                out = actor({"state": normalizer.state(history.push(input_frame(env, obs, inputs)))})
-                action = ActionDistribution(out, log_std, binary=True).sample()
-            sent = env_action(action, normalizer, "binary", close=action[:, -1])
+            x = {"state": normalizer.state(history.push(input_frame(env, obs, inputs)))}
+            out, _, _, sent = sample_action(actor, x, log_std, normalizer, "binary")
             obs, _, terminated, truncated, info = env.env.step(sent)
             steps.append({"distance": float(info["tcp_to_grasp_point"][0]), "grasped": bool(info["is_grasped"][0]),
                           "p_close": float(torch.sigmoid(out[0, -1])), "vz": float(sent[0, 2]),

@@ -160,6 +160,18 @@ class Fragment:
                         max(f.starts_bound for f in fragments))
 
 
+def sample_action(actor, x: dict[str, torch.Tensor], log_std: torch.Tensor, normalizer: Normalizer,
+                  gripper: str) -> tuple[torch.Tensor, ActionDistribution, torch.Tensor, torch.Tensor]:
+    """As training acts: (the actor's output, its distribution, a sampled action in the actor's space, the env
+    action made of it) for the normalized inputs `x`."""
+    binary = gripper == "binary"
+    with torch.no_grad():
+        out = actor(x)
+        dist = ActionDistribution(out, log_std, binary)
+        action = dist.sample()
+    return out, dist, action, env_action(action, normalizer, gripper, close=action[:, -1] if binary else None)
+
+
 def episode_outcome(success: bool, fail_cause: int, truncated: bool) -> str:
     """A finished training episode's outcome: "success", the failure cause's label (`envs.checks.FailureCause`), or
     "truncated" (the time limit)."""
@@ -194,7 +206,6 @@ class Collector:
 
         self.env, self.inputs, self.model = env, inputs, model
         self.actor, self.critic, self.log_std, self.normalizer = actor, critic, log_std, normalizer
-        self.binary = model["gripper"] == "binary"
         self.cameras, self.image_size = tuple(model["cameras"]), model["image_size"]
         self.history = FrameHistory(inputs.history)
         self.obs, self.info = obs, info
@@ -236,11 +247,8 @@ class Collector:
             raw = self.raw_inputs()
             x = self._normed(raw)
             with torch.no_grad():
-                pred, value = self.actor(x), self.critic(x)[:, 0]
-                dist = ActionDistribution(pred, self.log_std, self.binary)
-                action = dist.sample()
-            sent = env_action(action, self.normalizer, self.model["gripper"],
-                              close=action[:, -1] if self.binary else None)
+                value = self.critic(x)[:, 0]
+            _, dist, action, sent = sample_action(self.actor, x, self.log_std, self.normalizer, self.model["gripper"])
             self.obs, _, terminated, truncated, self.info = env.env.step(sent.to(device))
             r, phi, _ = reward(skill, self.info, self.prev_phi.to(device), sent.to(device), kind=env.config.reward,
                                gamma=gamma)

@@ -65,58 +65,56 @@ def _f(info: dict, key: str, skill: str) -> torch.Tensor:
     return info[key].float()
 
 
-def _negative(d: torch.Tensor) -> torch.Tensor:
-    return -d
-
-
 def closeness(d: torch.Tensor) -> torch.Tensor:
     """(1 - tanh(d / 1 m) + 1 - tanh(d / 0.1 m)) / 2: 1 at the goal, a slope at a metre and a steep one at centimetres."""
     return 1.0 - 0.5 * (torch.tanh(d) + torch.tanh(d / DENSE_NEAR_M))
 
 
-def _pick(info, skill, near):
+# Each skill's progress as (distance to its goal, milestones reached): phi = -distance + milestones.
+def _pick(info, skill):
     grasped = _f(info, "is_grasped", skill)
     lift = _f(info, "lift_height", skill).clamp(0.0, PICK_LIFT_M) / PICK_LIFT_M
-    return near(_f(info, "tcp_to_grasp_point", skill)) + grasped + 2.0 * lift * grasped
+    return _f(info, "tcp_to_grasp_point", skill), grasped + 2.0 * lift * grasped
 
 
-def _place(info, skill, near):
-    return (near(_f(info, "goal_distance", skill)) + _f(info, "is_support_contact", skill)
-            + _f(info, "is_released", skill) + _f(info, "is_gripper_clear", skill))
+def _place(info, skill):
+    return (_f(info, "goal_distance", skill), _f(info, "is_support_contact", skill) + _f(info, "is_released", skill)
+            + _f(info, "is_gripper_clear", skill))
 
 
-def _nav(info, skill, near):
-    return near(_f(info, "nav_distance", skill))
+def _nav(info, skill):
+    d = _f(info, "nav_distance", skill)
+    return d, torch.zeros_like(d)
 
 
-def _open(info, skill, near):
-    return near(_f(info, "tcp_to_handle", skill)) + _f(info, "is_handle_pinched", skill) + 2.0 * _f(info, "articulation_progress", skill)
+def _open(info, skill):
+    return _f(info, "tcp_to_handle", skill), _f(info, "is_handle_pinched", skill) + 2.0 * _f(info, "articulation_progress", skill)
 
 
-def _close(info, skill, near):
+def _close(info, skill):
     progress = 1.0 - _f(info, "articulation_progress", skill)
-    return near(_f(info, "tcp_to_handle", skill)) + _f(info, "is_handle_pinched", skill) + 2.0 * progress
+    return _f(info, "tcp_to_handle", skill), _f(info, "is_handle_pinched", skill) + 2.0 * progress
 
 
-POTENTIALS = {"pick": _pick, "place": _place, "nav": _nav, "open": _open, "close": _close}
-PEAK = {"pick": 4.0, "place": 4.0, "nav": 1.0, "open": 4.0, "close": 4.0}  # each potential's value at its goal
+PROGRESS = {"pick": _pick, "place": _place, "nav": _nav, "open": _open, "close": _close}
+MILESTONES = {"pick": 3.0, "place": 3.0, "nav": 0.0, "open": 3.0, "close": 3.0}  # each skill's milestones at its goal
 
 
-def _check(skill: str) -> None:
-    if skill not in POTENTIALS:
-        raise ValueError(f"no PPO reward for skill {skill!r}; valid: {', '.join(POTENTIALS)}")
+def _progress(skill: str, info: dict) -> tuple[torch.Tensor, torch.Tensor]:
+    if skill not in PROGRESS:
+        raise ValueError(f"no PPO reward for skill {skill!r}; valid: {', '.join(PROGRESS)}")
+    return PROGRESS[skill](info, skill)
 
 
 def potential(skill: str, info: dict) -> torch.Tensor:
     """phi `(N,)` of the table above."""
-    _check(skill)
-    return POTENTIALS[skill](info, skill, _negative)
+    distance, milestones = _progress(skill, info)
+    return milestones - distance
 
 
-def dense_progress(skill: str, info: dict) -> torch.Tensor:
+def _dense(skill: str, distance: torch.Tensor, milestones: torch.Tensor) -> torch.Tensor:
     """The dense reward's progress `(N,)` in (0, 1]: phi with closeness for minus distance, over its goal value."""
-    _check(skill)
-    return POTENTIALS[skill](info, skill, closeness) / PEAK[skill]
+    return (closeness(distance) + milestones) / (1.0 + MILESTONES[skill])
 
 
 def reward(skill: str, info: dict, prev_potential: torch.Tensor, action: torch.Tensor,
@@ -127,11 +125,12 @@ def reward(skill: str, info: dict, prev_potential: torch.Tensor, action: torch.T
     staying at the goal forever under `gamma`)."""
     if kind not in REWARD_KINDS:
         raise ValueError(f"unknown reward kind {kind!r}; valid: {', '.join(REWARD_KINDS)}")
-    phi = potential(skill, info)
+    distance, milestones = _progress(skill, info)  # read once: the potential and the dense progress share them
+    phi = milestones - distance
     w = weights
     dense = kind == "dense"
     terms = {
-        "progress": w.progress * (dense_progress(skill, info) if dense else phi - prev_potential),
+        "progress": w.progress * (_dense(skill, distance, milestones) if dense else phi - prev_potential),
         "success": (w.progress / (1.0 - gamma) if dense else w.success) * _f(info, "success", skill),
         "fail": -w.fail * _f(info, "fail", skill),
         "tilt": -w.tilt * (_f(info, "tilt", skill) - w.tilt_soft_rad).clamp_min(0.0),
