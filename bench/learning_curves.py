@@ -17,6 +17,10 @@ evaluation already in `--out` is reused.
 
     python bench/learning_curves.py [--rounds 1,2] [--rollouts-per-round 8] [--ppo-steps 2000] [--out DIR]
     python bench/learning_curves.py --spec-scale --ppo-steps 0 --bc-seeds 0,1 --out outputs/bench/learning_curves_spec
+    python bench/learning_curves.py --bc-summary learning_curves.json --ppo-run RUN --workers 2 --out DIR
+
+The last form draws the figure from finished parts: a learning curve's summary (expert and BC) and a PPO run trained
+apart to millions of interactions, its final checkpoint evaluated on the same held-out starts.
 """
 
 from __future__ import annotations
@@ -274,6 +278,89 @@ def held_out(budget: Budget, policy: str, checkpoint: Path | None, out: Path) ->
             "eval_s": time.monotonic() - started, "results": str(out / "results.json")}
 
 
+def ppo_result(budget: Budget, ppo_dir: Path, ckpt: Path, train_s: float | None, eval_dir: Path) -> dict:
+    """A PPO run's curve (`budget.window`-episode moving average of training success), its held-out success and the
+    training options that tell one recipe from another."""
+    from aerobench.policies.learned import read_config
+
+    train = read_config(ckpt)["train"]
+    episodes = ppo_training_episodes(ppo_dir)
+    steps = np.array([e["global_step"] for e in episodes], float)
+    success = np.array([float(bool(e["success"])) for e in episodes])
+    ma = moving_average(success, budget.window)
+    keep = np.unique(np.linspace(0, len(ma) - 1, min(len(ma), 1000)).astype(int)) if len(ma) else np.zeros(0, int)
+    result = {
+        "checkpoint": str(ckpt), "train_s": train_s, "episodes": len(episodes), "successes": int(success.sum()),
+        "interactions": int(steps[-1]) if len(steps) else 0,
+        "interactions_per_s": float(steps[-1] / train_s) if len(steps) and train_s else None,
+        "final_moving_average": float(ma[-1]) if len(ma) else None,
+        "curve": {"global_step": steps[keep].astype(int).tolist(), "success_moving_average": ma[keep].tolist()},
+        "held_out": held_out(budget, "ppo", ckpt, eval_dir),
+        "train_config": {k: train.get(k) for k in ("reward", "num_steps", "num_envs", "num_minibatches",
+                                                   "update_epochs", "state_fields", "seed", "gamma")},
+    }
+    print(f"  PPO: {result['episodes']} training episodes, {result['successes']} successful, final moving average "
+          f"{result['final_moving_average']}; {result['interactions_per_s'] or 0:.0f} interactions/s; held-out "
+          f"{result['held_out']['successes']}/{result['held_out']['n']}", flush=True)
+    return result
+
+
+def logged_train_seconds(ppo_dir: Path) -> float | None:
+    """A run's training time from its logged per-window throughput (`charts/SPS`, interactions per second of each
+    rollout + update window): the sum of each window's interactions over its rate. None without the log."""
+    path = ppo_dir / "scalars.jsonl"
+    if not path.is_file():
+        return None
+    seconds, previous = 0.0, 0
+    for line in path.read_text().splitlines():
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            break  # a torn last line
+        if row["tag"] == "charts/SPS" and row["value"] > 0:
+            seconds += (row["step"] - previous) / row["value"]
+            previous = row["step"]
+    return seconds or None
+
+
+def with_ppo_run(summary_file: Path, ppo_dir: Path, out: Path, workers: int) -> dict:
+    """The figure from finished parts: the expert and BC rows of a learning-curves summary (`--bc-summary`) and a PPO
+    run trained apart (`--ppo-run`, e.g. `aerobench train ppo` to millions of interactions), whose final checkpoint is
+    evaluated on the summary's held-out starts (the same seed and episodes per object as BC and the expert)."""
+    from dataclasses import fields
+
+    from aerobench.policies.learned import read_config
+
+    try:
+        summary = json.loads(summary_file.read_text())
+        saved = summary["budget"]
+    except (OSError, json.JSONDecodeError, KeyError) as e:
+        raise ValueError(f"--bc-summary {summary_file} is not a learning_curves.json ({e}); pass the JSON this "
+                         f"script writes (e.g. docs/results/learning_curves/TidyHouse_pick_v3.json)") from None
+    if summary.get("held_out_seed") != HELD_OUT_SEED:
+        raise ValueError(f"--bc-summary {summary_file} was evaluated on seed {summary.get('held_out_seed')}, this "
+                         f"script evaluates on {HELD_OUT_SEED}; re-run its learning curve with this script")
+    known = {f.name for f in fields(Budget)}
+    budget = Budget(**{**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items() if k in known},
+                       "workers": workers, "ppo_steps": 0})
+    ckpt = ppo_dir / "checkpoint"
+    if not (ckpt / "config.json").is_file():
+        raise ValueError(f"--ppo-run {ppo_dir} holds no checkpoint/config.json; pass the --out folder of an "
+                         f"`aerobench train ppo` run")
+    config = read_config(ckpt)
+    train = config["train"]
+    theirs = (train["setting"], train["skill"], tuple(train["objects"]) if train.get("objects") else None)
+    if config["algorithm"] != "ppo" or theirs != (budget.setting, budget.skill, budget.objects):
+        raise ValueError(f"--ppo-run {ppo_dir} is a {config['algorithm']} run of {theirs}, the summary's curve is "
+                         f"{(budget.setting, budget.skill, budget.objects)}; pass a PPO run of the same setting, "
+                         f"skill and objects")
+    summary["ppo"] = ppo_result(budget, ppo_dir, ckpt, logged_train_seconds(ppo_dir),
+                                out / "eval" / f"ppo_{ppo_dir.name}_e{budget.eval_per_object}")
+    summary["budget"] = {**saved, "ppo_steps": summary["ppo"]["interactions"]}
+    summary["sources"] = {"bc_summary": str(summary_file), "ppo_run": str(ppo_dir)}
+    return summary
+
+
 # ── the experiment ───────────────────────────────────────────────────────────────────────────────────────────────
 def run(budget: Budget, out: Path) -> dict:
     out.mkdir(parents=True, exist_ok=True)
@@ -318,23 +405,7 @@ def run(budget: Budget, out: Path) -> dict:
                              + (f"_{budget.ppo_recipe}" if budget.ppo_recipe != "spec" else ""))
     print(f"PPO from scratch, {budget.ppo_steps} interactions -> {ppo_dir}", flush=True)
     ckpt, train_s = train_ppo_checkpoint(budget, ppo_dir)
-    episodes = ppo_training_episodes(ppo_dir)
-    steps = np.array([e["global_step"] for e in episodes], float)
-    success = np.array([float(bool(e["success"])) for e in episodes])
-    ma = moving_average(success, budget.window)
-    keep = np.unique(np.linspace(0, len(ma) - 1, min(len(ma), 1000)).astype(int)) if len(ma) else np.zeros(0, int)
-    summary["ppo"] = {
-        "checkpoint": str(ckpt), "train_s": train_s, "episodes": len(episodes), "successes": int(success.sum()),
-        "interactions": int(steps[-1]) if len(steps) else 0,
-        "interactions_per_s": float(steps[-1] / train_s) if len(steps) and train_s > 0 else None,
-        "final_moving_average": float(ma[-1]) if len(ma) else None,
-        "curve": {"global_step": steps[keep].astype(int).tolist(), "success_moving_average": ma[keep].tolist()},
-        "held_out": held_out(budget, "ppo", ckpt, out / "eval" / f"ppo_{ppo_dir.name}_{evals}"),
-    }
-    p = summary["ppo"]
-    print(f"  PPO: {p['episodes']} training episodes, {p['successes']} successful, final moving average "
-          f"{p['final_moving_average']}; {p['interactions_per_s'] or 0:.0f} interactions/s; held-out "
-          f"{p['held_out']['successes']}/{p['held_out']['n']}", flush=True)
+    summary["ppo"] = ppo_result(budget, ppo_dir, ckpt, train_s, out / "eval" / f"ppo_{ppo_dir.name}_{evals}")
     return summary
 
 
@@ -391,8 +462,11 @@ def plot(summary: dict, path: Path) -> None:
                         (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
     curve = summary["ppo"]["curve"] if summary["ppo"] else {"global_step": []}
     if curve["global_step"]:
+        t = summary["ppo"].get("train_config") or {}
+        recipe = (f"; {t['reward']} reward, {t['num_steps']}-step windows x {t['num_envs']} envs"
+                  + (f", + {'/'.join(t['state_fields'])}" if t.get("state_fields") else "")) if t else ""
         ax.plot(np.maximum(curve["global_step"], 1), curve["success_moving_average"], color="C1",
-                label=f"PPO training success ({summary['budget']['window']}-episode moving average)")
+                label=f"PPO training success ({summary['budget']['window']}-episode moving average{recipe})")
         h = summary["ppo"]["held_out"]
         ax.plot([max(summary["ppo"]["interactions"], 1)], [h["success"]], "s", color="C1", mfc="none",
                 label="PPO held-out")
@@ -422,7 +496,7 @@ def _csv(text: str) -> tuple[str, ...]:
     return tuple(x.strip() for x in text.split(",") if x.strip())
 
 
-def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
+def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path, tuple[Path, Path] | None]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--setting", default="TidyHouse")
     parser.add_argument("--objects", type=_csv, default=None,
@@ -450,8 +524,16 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
     parser.add_argument("--spec-scale", action="store_true",
                         help="the spec's budget: rounds 1,2,4,8 of 256 rollouts, 20k BC steps, 5M PPO interactions, "
                              "50 held-out episodes per object (explicit flags still win)")
+    parser.add_argument("--bc-summary", type=Path, default=None,
+                        help="with --ppo-run: draw the figure from this finished learning_curves.json (its expert and "
+                             "BC rows, budget and held-out starts) instead of running them")
+    parser.add_argument("--ppo-run", type=Path, default=None,
+                        help="with --bc-summary: the --out folder of a PPO run trained apart (e.g. `aerobench train "
+                             "ppo` to millions of interactions); its checkpoint is evaluated on the summary's starts")
     parser.add_argument("--out", default="outputs/bench/learning_curves")
     args = parser.parse_args(argv)
+    if (args.bc_summary is None) != (args.ppo_run is None):
+        parser.error("--bc-summary and --ppo-run go together: a finished learning_curves.json and a PPO run folder")
     base = SPEC_SCALE if args.spec_scale else {}
     given = {k: getattr(args, k) for k in ("rounds", "rollouts_per_round", "bc_steps", "ppo_steps", "eval_per_object")
              if getattr(args, k) is not None}
@@ -469,13 +551,20 @@ def parse_budget(argv: list[str] | None = None) -> tuple[Budget, Path]:
                         **{**base, **given})
     except ValueError as e:
         parser.error(str(e))
-    return budget, Path(args.out)
+    return budget, Path(args.out), ((args.bc_summary, args.ppo_run) if args.ppo_run else None)
 
 
 def main(argv: list[str] | None = None) -> dict:
-    budget, out = parse_budget(argv)
+    budget, out, finished = parse_budget(argv)
     started = time.monotonic()
-    summary = run(budget, out)
+    if finished:
+        out.mkdir(parents=True, exist_ok=True)
+        try:
+            summary = with_ppo_run(*finished, out, budget.workers)
+        except ValueError as e:
+            sys.exit(f"error: {e}")
+    else:
+        summary = run(budget, out)
     summary["wall_s"] = time.monotonic() - started
     (out / "learning_curves.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     plot(summary, out / "learning_curves.png")

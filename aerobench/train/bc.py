@@ -51,8 +51,9 @@ BATCH_SEED_STRIDE = 1_000_003  # batch generator seed = seed * stride + step: di
 EPISODES_FILE = "meta/aerobench_episodes.jsonl"
 STATE_KEY, ACTION_KEY, TASK_STATE_KEY = "observation.state", "action", "observation.environment_state"
 STAGE_KEY, PHASE_KEY = "annotation.stage", "annotation.phase"
-# Options that may change when a run is resumed (the budget and the bookkeeping cadence).
-RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads")
+# Options that may change when a run is resumed: the budget, the bookkeeping cadence, and `out` (a run folder may be
+# moved).
+RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads", "out")
 
 
 @dataclass

@@ -65,7 +65,8 @@ from .rollout_workers import ProcessWorkers, RayWorkers
 EPISODES_FILE = "train_episodes.jsonl"
 SUCCESS_WINDOW = 100  # charts/success_rate: the last 100 finished episodes
 SIM_BACKENDS = ("physx_cpu", "physx_cuda")
-RESUMABLE_CHANGES = ("total_steps", "save_every", "progress", "threads", "ray")
+# Options that may change when a run is resumed: the budget, the bookkeeping, and `out` (a run folder may be moved).
+RESUMABLE_CHANGES = ("total_steps", "save_every", "progress", "threads", "ray", "out")
 
 
 @dataclass

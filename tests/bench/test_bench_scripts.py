@@ -115,6 +115,9 @@ def test_bad_flags_are_one_line_errors(capsys):
         learning_curves.parse_budget(["--ppo-recipe", "gpu"])
     assert "invalid choice: 'gpu'" in capsys.readouterr().err
     with pytest.raises(SystemExit):
+        learning_curves.parse_budget(["--ppo-run", "runs/ppo"])
+    assert "--bc-summary and --ppo-run go together" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
         call_warmth.main(["--gaps", "0,ten", "--no-env"])
     assert "comma-separated microseconds" in capsys.readouterr().err
 
@@ -174,6 +177,33 @@ def test_learning_curves_end_to_end_and_resume(learning_curves_run):
     train = json.loads((Path(cpu["ppo"]["checkpoint"]) / "config.json").read_text())["train"]
     assert (train["reward"], train["num_steps"], train["state_fields"]) == ("dense", 1024, ["finger_position", "finger_velocity"])
     assert cpu["ppo"]["interactions"] > 100 and cpu["ppo"]["episodes"] >= 1 and cpu["budget"]["ppo_recipe"] == "cpu"
+
+
+def test_learning_curves_figure_from_a_summary_and_a_ppo_run_trained_apart(learning_curves_run, tmp_path, capsys):
+    src, _, summary = learning_curves_run
+    ppo_run = Path(summary["ppo"]["checkpoint"]).parent
+    args = ["--bc-summary", str(src / "learning_curves.json"), "--ppo-run", str(ppo_run), "--out", str(tmp_path)]
+    combined = learning_curves.main(args)
+    assert _is_png(tmp_path / "learning_curves.png") and (tmp_path / "learning_curves.json").is_file()
+    # the expert and BC rows are the summary's; PPO's curve is the run's, evaluated here on the summary's starts
+    assert combined["bc"] == json.loads((src / "learning_curves.json").read_text())["bc"]
+    assert combined["ppo"]["curve"] == summary["ppo"]["curve"]
+    assert combined["ppo"]["held_out"]["n"] == summary["ppo"]["held_out"]["n"] == 1
+    assert (tmp_path / "eval" / f"ppo_{ppo_run.name}_e1" / "records.jsonl").is_file()
+    assert combined["budget"]["ppo_steps"] == combined["ppo"]["interactions"] == summary["ppo"]["interactions"]
+    assert combined["ppo"]["train_config"]["reward"] == "potential" and combined["sources"]["ppo_run"] == str(ppo_run)
+    # the training time comes from the run's logged throughput (no bench_done.json for a run trained apart)
+    assert 0 < combined["ppo"]["train_s"] < 10 * summary["ppo"]["train_s"] + 60
+
+    other = json.loads((src / "learning_curves.json").read_text())
+    other["skill"] = other["budget"]["skill"] = "place"
+    (tmp_path / "place.json").write_text(json.dumps(other))
+    with pytest.raises(SystemExit, match="pass a PPO run of the same setting, skill and objects"):
+        learning_curves.main(["--bc-summary", str(tmp_path / "place.json"), "--ppo-run", str(ppo_run),
+                              "--out", str(tmp_path / "x")])
+    with pytest.raises(SystemExit, match="holds no checkpoint/config.json"):
+        learning_curves.main(["--bc-summary", str(src / "learning_curves.json"), "--ppo-run", str(tmp_path),
+                              "--out", str(tmp_path / "x")])
 
 
 def test_diversity_end_to_end(learning_curves_run, tmp_path):

@@ -184,12 +184,13 @@ def test_bc_is_deterministic_and_resumes_exactly(state_dataset, tmp_path):
     log = tmp_path / "r" / "scalars.jsonl"
     with open(log, "a") as f:  # an interrupted run logged past its last checkpoint: that part is redone, not kept
         f.write(json.dumps({"step": 25, "tag": "losses/bc", "value": 123.0}) + "\n")
-    r = train_bc(cfg(tmp_path / "r", 40))
+    moved = (tmp_path / "r").rename(tmp_path / "r_moved")  # a run folder resumes wherever it was moved to
+    r = train_bc(cfg(moved, 40))
     wr = _weights(r)
     assert all(torch.equal(wa[k], wr[k]) for k in wa), "resuming 20 -> 40 must equal one run of 40 steps"
-    assert read_scalars(tmp_path / "r", "losses/bc") == read_scalars(tmp_path / "a", "losses/bc")
+    assert read_scalars(moved, "losses/bc") == read_scalars(tmp_path / "a", "losses/bc")
     assert torch.load(r / "train_state.pt", weights_only=False)["step"] == 40
-    assert train_bc(cfg(tmp_path / "r", 40)) == r  # already finished: nothing to do
+    assert train_bc(cfg(moved, 40)) == r  # already finished: nothing to do
 
 
 def test_a_data_budget_keeps_the_leading_episodes_that_fit():

@@ -125,6 +125,7 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     saved = json.loads((b / "checkpoint" / "config.json").read_text())
     del saved["train"]["reward"]  # as a run saved before --reward existed: it trained with the potential reward
     (b / "checkpoint" / "config.json").write_text(json.dumps(saved))
+    b = b.rename(tmp_path / "b_moved")  # a run folder resumes wherever it was moved to
     train_ppo(_config(b, 128))
     state = _state(b)
     assert (state["global_step"], state["iteration"]) == (128, 2)
