@@ -443,7 +443,7 @@ def plot(summary: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    fig, ax = plt.subplots(figsize=(7.5, 4.6))
     bc = sorted((r for r in summary["bc"] if r["held_out"] and r["transitions"] > 0), key=lambda r: r["transitions"])
     if bc:
         x = np.array([r["transitions"] for r in bc], float)
@@ -463,10 +463,10 @@ def plot(summary: dict, path: Path) -> None:
     curve = summary["ppo"]["curve"] if summary["ppo"] else {"global_step": []}
     if curve["global_step"]:
         t = summary["ppo"].get("train_config") or {}
-        recipe = (f"; {t['reward']} reward, {t['num_steps']}-step windows x {t['num_envs']} envs"
-                  + (f", + {'/'.join(t['state_fields'])}" if t.get("state_fields") else "")) if t else ""
+        recipe = (f"\n{t['reward']} reward, {t['num_steps']}-step windows x {t['num_envs']} envs"
+                  + (f", + {', '.join(t['state_fields'])}" if t.get("state_fields") else "")) if t else ""
         ax.plot(np.maximum(curve["global_step"], 1), curve["success_moving_average"], color="C1",
-                label=f"PPO training success ({summary['budget']['window']}-episode moving average{recipe})")
+                label=f"PPO training success ({summary['budget']['window']}-episode moving average){recipe}")
         h = summary["ppo"]["held_out"]
         ax.plot([max(summary["ppo"]["interactions"], 1)], [h["success"]], "s", color="C1", mfc="none",
                 label="PPO held-out")
@@ -477,9 +477,9 @@ def plot(summary: dict, path: Path) -> None:
     ax.set_ylabel(f"{summary['budget']['setting']} {summary['skill'].capitalize()} success")
     b = summary["budget"]
     ax.set_title(f"{b['rollouts_per_round']} rollouts/round, rounds {','.join(map(str, b['rounds']))}, "
-                 f"BC {b['bc_steps']} steps" + (f", PPO {b['ppo_steps']} steps" if b["ppo_steps"] else "")
-                 + f"; held-out {b['eval_per_object']} per object", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
+                 f"BC {b['bc_steps']} steps" + (f", PPO {b['ppo_steps']} interactions" if b["ppo_steps"] else "")
+                 + f"\nheld-out {b['eval_per_object']} episodes per object", fontsize=9)
+    ax.legend(fontsize=7, loc="center left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -14,6 +14,11 @@ interactions:
 With `--png` it also draws the spec's PPO curve: training success as a moving average over the last 400 episodes
 (spec Fig. `learning_curves`) against interactions, with the median peak potential beside it.
 
+Where the run logged its updates (`RUN/scalars.jsonl`), it also prints per bin the median approximate KL between the
+policy that collected a window and the one its update left (the mean over the update's minibatches), the share of
+samples whose probability ratio was clipped, and the action std: a run whose std shrinks while its learning rate stays
+fixed takes ever larger steps, which `--target-kl` bounds.
+
 `--gripper-probe K` (Pick) runs K episodes with the run's checkpoint as training acts (sampled actions, new starts
 from seed 777) and prints, by distance of the tool centre point to the grasp point, the median probability the actor
 gives "close" and its median vertical command: whether it arrives with the gripper open and lifts once it holds.
@@ -38,6 +43,7 @@ from learning_curves import moving_average, ppo_training_episodes  # noqa: E402
 SPEC_WINDOW = 400  # the spec's moving-average window (Fig. learning_curves)
 NEAR_M = 0.05
 GRASPED_POTENTIAL = 0.5  # Pick's potential is -distance + grasped + 2 x lift: above this only while grasped
+UPDATE_TAGS = {"losses/approx_kl": "approx_kl", "losses/clipfrac": "clipfrac", "charts/action_std": "action_std"}
 
 
 def default_bins(last_step: int) -> list[int]:
@@ -75,6 +81,31 @@ def progress_rows(episodes: list[dict], edges: list[int], skill: str | None) -> 
                 row["within_5cm"] = sum(p > -NEAR_M for p in peaks) / len(peaks)
                 row["grasped"] = sum(p > GRASPED_POTENTIAL for p in peaks)
         rows.append(row)
+    return rows
+
+
+def update_rows(run: Path, edges: list[int]) -> list[dict]:
+    """Per bin of global steps with logged updates: their number and the median of each of `UPDATE_TAGS`."""
+    path = run / "scalars.jsonl"
+    if not path.is_file():
+        return []
+    values: dict[str, list[tuple[int, float]]] = {tag: [] for tag in UPDATE_TAGS}
+    for line in path.read_text().splitlines():
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            break  # a torn last line
+        if row["tag"] in values:
+            values[row["tag"]].append((row["step"], row["value"]))
+    rows = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        row: dict = {"from": lo, "to": hi}
+        for tag, name in UPDATE_TAGS.items():
+            chunk = [v for step, v in values[tag] if lo < step <= hi]
+            if chunk:
+                row[name], row["updates"] = statistics.median(chunk), len(chunk)
+        if "updates" in row:
+            rows.append(row)
     return rows
 
 
@@ -188,6 +219,13 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{args.run}: {len(episodes)} episodes to step {episodes[-1]['global_step']}, skill {skill or 'unknown'}")
     for row in progress_rows(episodes, edges, skill):
         print(format_row(row))
+    updates = update_rows(args.run, edges)
+    if updates:
+        print("updates (medians per bin):")
+    for row in updates:
+        print(f"{row['from'] / 1000:>6g}k-{row['to'] / 1000:g}k  {row['updates']:5d} updates, approx KL "
+              f"{row.get('approx_kl', math.nan):.3f}, clipped {100 * row.get('clipfrac', math.nan):4.1f}%, action std "
+              f"{row.get('action_std', math.nan):.3f}")
     if args.png:
         plot(episodes, args.png, f"{args.run.name}: {skill or ''} PPO, {episodes[-1]['global_step']} interactions")
         print(f"wrote {args.png}")
