@@ -238,16 +238,12 @@ def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
 def ppo_training_episodes(out: Path) -> list[dict]:
     """PPO's `train_episodes.jsonl` rows (global_step, episode, success, return, length, and since 2026-11-30 outcome
     and peak_potential), in order."""
+    from aerobench.rollout.records import read_records
+
     path = out / "train_episodes.jsonl"
     if not path.is_file():
         raise ValueError(f"{path} is missing: the PPO trainer writes one line per finished training episode there")
-    rows = []
-    for line in path.read_text().splitlines():
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError:
-            break  # a torn last line
-    return sorted(rows, key=lambda r: r["global_step"])
+    return sorted(read_records(path), key=lambda r: r["global_step"])  # a running run's torn last line is ignored
 
 
 def moving_average(values: np.ndarray, window: int) -> np.ndarray:
@@ -308,18 +304,12 @@ def ppo_result(budget: Budget, ppo_dir: Path, ckpt: Path, train_s: float | None,
 def logged_train_seconds(ppo_dir: Path) -> float | None:
     """A run's training time from its logged per-window throughput (`charts/SPS`, interactions per second of each
     rollout + update window): the sum of each window's interactions over its rate. None without the log."""
-    path = ppo_dir / "scalars.jsonl"
-    if not path.is_file():
-        return None
+    from aerobench.train.common import read_scalars
+
     seconds, previous = 0.0, 0
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:
-            break  # a torn last line
-        if row["tag"] == "charts/SPS" and row["value"] > 0:
-            seconds += (row["step"] - previous) / row["value"]
-            previous = row["step"]
+    for step, rate in read_scalars(ppo_dir, "charts/SPS"):
+        if rate > 0:
+            seconds, previous = seconds + (step - previous) / rate, step
     return seconds or None
 
 

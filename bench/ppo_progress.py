@@ -86,17 +86,9 @@ def progress_rows(episodes: list[dict], edges: list[int], skill: str | None) -> 
 
 def update_rows(run: Path, edges: list[int]) -> list[dict]:
     """Per bin of global steps with logged updates: their number and the median of each of `UPDATE_TAGS`."""
-    path = run / "scalars.jsonl"
-    if not path.is_file():
-        return []
-    values: dict[str, list[tuple[int, float]]] = {tag: [] for tag in UPDATE_TAGS}
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:
-            break  # a torn last line
-        if row["tag"] in values:
-            values[row["tag"]].append((row["step"], row["value"]))
+    from aerobench.train.common import read_scalars
+
+    values = {tag: read_scalars(run, tag) for tag in UPDATE_TAGS}
     rows = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         row: dict = {"from": lo, "to": hi}

@@ -102,10 +102,11 @@ class ScalarLog:
 
 
 def read_scalars(out: Path, tag: str) -> list[tuple[int, float]]:
-    """`(step, value)` of one tag from a run's scalars.jsonl."""
+    """`(step, value)` of one tag from a run's scalars.jsonl (a running run's torn last line is ignored)."""
+    from ..rollout.records import read_records
+
     path = Path(out) / SCALARS_FILE
-    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
-    return [(r["step"], r["value"]) for r in rows if r["tag"] == tag]
+    return [(r["step"], r["value"]) for r in (read_records(path) if path.exists() else []) if r["tag"] == tag]
 
 
 # ── CLI flags from a config dataclass ─────────────────────────────────────────────────────────────────────────────

@@ -113,25 +113,18 @@ def test_phase_boundaries_from_events_and_gripper_command():
     assert diversity.phase_boundaries({"events": events, "action": action}, 12, False, 4) == [4, None, None, None, None]
 
 
-def test_bad_flags_are_one_line_errors(capsys):
+@pytest.mark.parametrize("parse, argv, message", [
+    (learning_curves.parse_budget, ["--rounds", "2,1"], "increasing positive integers"),
+    (diversity.parse_config, ["--policies", "expert,dagger"], "expert, bc, ppo"),
+    (learning_curves.parse_budget, ["--objects", "anvil"], "valid objects"),
+    (learning_curves.parse_budget, ["--ppo-recipe", "gpu"], "invalid choice: 'gpu'"),
+    (learning_curves.parse_budget, ["--ppo-run", "runs/ppo"], "--bc-summary and --ppo-run go together"),
+    (call_warmth.main, ["--gaps", "0,ten", "--no-env"], "comma-separated microseconds"),
+])
+def test_bad_flags_are_one_line_errors(parse, argv, message, capsys):
     with pytest.raises(SystemExit):
-        learning_curves.parse_budget(["--rounds", "2,1"])
-    assert "increasing positive integers" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        diversity.parse_config(["--policies", "expert,dagger"])
-    assert "expert, bc, ppo" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        learning_curves.parse_budget(["--objects", "anvil"])
-    assert "valid objects" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        learning_curves.parse_budget(["--ppo-recipe", "gpu"])
-    assert "invalid choice: 'gpu'" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        learning_curves.parse_budget(["--ppo-run", "runs/ppo"])
-    assert "--bc-summary and --ppo-run go together" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        call_warmth.main(["--gaps", "0,ten", "--no-env"])
-    assert "comma-separated microseconds" in capsys.readouterr().err
+        parse(argv)
+    assert message in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
