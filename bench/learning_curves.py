@@ -33,7 +33,7 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
@@ -317,8 +317,6 @@ def with_ppo_run(summary_file: Path, ppo_dir: Path, out: Path, workers: int) -> 
     """The figure from finished parts: the expert and BC rows of a learning-curves summary (`--bc-summary`) and a PPO
     run trained apart (`--ppo-run`, e.g. `aerobench train ppo` to millions of interactions), whose final checkpoint is
     evaluated on the summary's held-out starts (the same seed and episodes per object as BC and the expert)."""
-    from dataclasses import fields
-
     from aerobench.policies.learned import read_config
 
     try:
