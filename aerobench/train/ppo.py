@@ -5,8 +5,9 @@ updates; rewards from task progress and success with penalties for undesirable a
 (`aerobench.train.rewards`); optionally initialised from a BC policy with critic warm-up and imitation
 regularization. The spec's reference configuration is the default: 64-step rollout windows, gamma 0.97, clip 0.2.
 The spec states no other hyper-parameter; the rest are CleanRL's `ppo_continuous_action.py` defaults, except 4
-minibatches (64 samples per window on one CPU env) and no learning-rate annealing (so a run can be resumed with a
-larger budget).
+minibatches (64 samples per window on one CPU env) and a constant learning rate by default: CleanRL anneals it to 0 at
+the end of the budget, which would tie the schedule to a budget that a resumed run may raise, so the annealing here is
+`--lr-decay-steps N`, to 0 at N env steps whatever the budget.
 
 Read top to bottom: config -> env(s) -> networks -> loop (rollout window, GAE, clipped update, log, checkpoint).
 The rollout window (`aerobench.train.ppo_rollout.Collector`) steps the envs with the current policy: `num_envs` in
@@ -90,6 +91,8 @@ class PPOConfig:
     clip_coef: float = field(default=0.2, metadata={"help": "policy clip (spec: 0.2)"})
     gae_lambda: float = field(default=0.95, metadata={"help": "GAE lambda"})
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
+    lr_decay_steps: int = field(default=0, metadata={"help": "env steps over which the learning rate decays linearly "
+                                "to 0, set before each window (CleanRL's annealing; 0: constant)"})
     update_epochs: int = field(default=10, metadata={"help": "epochs over each window"})
     num_minibatches: int = field(default=4, metadata={"help": "minibatches per epoch"})
     ent_coef: float = field(default=0.0, metadata={"help": "entropy bonus"})
@@ -148,8 +151,8 @@ class PPOConfig:
                              f"({self.num_steps * self.num_envs})")
         if not (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1 and self.clip_coef > 0 and self.learning_rate > 0):
             raise ValueError("need 0 < gamma <= 1, 0 <= gae_lambda <= 1, clip_coef > 0 and learning_rate > 0")
-        if self.bc_coef < 0 or self.critic_warmup_steps < 0 or self.bc_decay_steps < 0:
-            raise ValueError("--bc-coef, --critic-warmup-steps and --bc-decay-steps must not be negative")
+        if self.bc_coef < 0 or self.critic_warmup_steps < 0 or self.bc_decay_steps < 0 or self.lr_decay_steps < 0:
+            raise ValueError("--bc-coef, --critic-warmup-steps, --bc-decay-steps and --lr-decay-steps must not be negative")
         if (self.bc_coef > 0 or self.critic_warmup_steps > 0) and not self.init_bc:
             raise ValueError("--bc-coef and --critic-warmup-steps apply to a BC-initialised run: add --init-bc DIR")
         if self.reward not in REWARD_KINDS:
@@ -210,6 +213,13 @@ class RunningMeanStd:
         self.mean, self.var, self.count = state["mean"], state["var"], state["count"]
 
 
+def learning_rate_at(config: PPOConfig, global_step: int) -> float:
+    """The learning rate of the window that starts at `global_step` env steps."""
+    if not config.lr_decay_steps:
+        return config.learning_rate
+    return config.learning_rate * max(0.0, 1.0 - global_step / config.lr_decay_steps)
+
+
 def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
     return {k: v[index] for k, v in storage.items()}
 
@@ -230,8 +240,9 @@ def _train_ppo(config: PPOConfig) -> Path:
         saved = read_config(checkpoint)
         if saved["algorithm"] != "ppo":
             raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
-        # a run saved before `--reward` existed trained with the potential reward
-        check_resumable({"reward": "potential", **saved["train"]}, current, out, RESUMABLE_CHANGES)
+        # a run saved before `--reward` (or `--lr-decay-steps`) existed trained with the potential reward (and a
+        # constant learning rate)
+        check_resumable({"reward": "potential", "lr_decay_steps": 0, **saved["train"]}, current, out, RESUMABLE_CHANGES)
         train_state = load_train_state(checkpoint, out)
         if train_state["global_step"] >= config.total_steps:
             return checkpoint
@@ -339,6 +350,8 @@ def _train_ppo(config: PPOConfig) -> Path:
     while global_step < config.total_steps:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
+        if config.lr_decay_steps:  # set from the step count alone, so a resumed run follows the same schedule
+            optimizer.param_groups[0]["lr"] = learning_rate_at(config, global_step)
         # ── rollout window: (T, N) samples ──
         window = collect()
         global_step += T * N

@@ -123,7 +123,8 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     with open(b / "train_episodes.jsonl", "a") as f:
         f.write(json.dumps({"global_step": 70, "episode": 99, "success": True, "return": 0.0, "length": 1}) + "\n")
     saved = json.loads((b / "checkpoint" / "config.json").read_text())
-    del saved["train"]["reward"]  # as a run saved before --reward existed: it trained with the potential reward
+    for name in ("reward", "lr_decay_steps"):  # as a run saved before these existed: potential reward, constant lr
+        del saved["train"][name]
     (b / "checkpoint" / "config.json").write_text(json.dumps(saved))
     b = b.rename(tmp_path / "b_moved")  # a run folder resumes wherever it was moved to
     train_ppo(_config(b, 128))
@@ -152,6 +153,24 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     assert json.loads((d / "checkpoint" / "config.json").read_text())["train"]["reward"] == "dense"
     with pytest.raises(ValueError, match="reward differ"):
         train_ppo(_config(d, 128))  # resumed with the other reward: refused
+
+
+def test_ppo_learning_rate_decays_with_the_step_count_across_a_resume(tmp_path):
+    run = tmp_path / "lr"
+    train_ppo(_config(run, 64, lr_decay_steps=128))
+    assert read_scalars(run, "charts/learning_rate") == [(64, pytest.approx(3e-4))]  # the first window: full rate
+    train_ppo(_config(run, 192, lr_decay_steps=128))  # resumed with a larger budget: the schedule does not move
+    assert read_scalars(run, "charts/learning_rate") == [(64, pytest.approx(3e-4)), (128, pytest.approx(1.5e-4)),
+                                                         (192, 0.0)]
+    before = load_weights(run / "checkpoint")
+    train_ppo(_config(run, 256, lr_decay_steps=128))  # past the schedule's end the policy no longer changes
+    after = load_weights(run / "checkpoint")
+    assert all(torch.equal(before[k], after[k]) for k in before)
+    assert _state(run)["global_step"] == 256
+    with pytest.raises(ValueError, match="lr_decay_steps differ"):
+        train_ppo(_config(run, 320))  # resumed with a constant rate: refused
+    with pytest.raises(ValueError, match="--lr-decay-steps must not be negative"):
+        _config(run, 64, lr_decay_steps=-1)
 
 
 def _bc_from_one_short_expert_episode(root: Path, max_steps: int, cameras: bool, **bc) -> Path:
