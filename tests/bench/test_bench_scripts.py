@@ -181,6 +181,7 @@ def test_learning_curves_end_to_end_and_resume(learning_curves_run):
     assert Path(cpu["ppo"]["checkpoint"]).parent.name.endswith("_cpu") and cpu["ppo"]["held_out"]["n"] == 1
     train = json.loads((Path(cpu["ppo"]["checkpoint"]) / "config.json").read_text())["train"]
     assert (train["reward"], train["num_steps"], train["state_fields"]) == ("dense", 1024, ["finger_position", "finger_velocity"])
+    assert train["lr_decay_steps"] == cpu["budget"]["ppo_steps"] == cpu["ppo"]["train_config"]["lr_decay_steps"]
     assert cpu["ppo"]["interactions"] > 100 and cpu["ppo"]["episodes"] >= 1 and cpu["budget"]["ppo_recipe"] == "cpu"
 
 
@@ -197,6 +198,7 @@ def test_learning_curves_figure_from_a_summary_and_a_ppo_run_trained_apart(learn
     assert (tmp_path / "eval" / f"ppo_{ppo_run.name}_e1" / "records.jsonl").is_file()
     assert combined["budget"]["ppo_steps"] == combined["ppo"]["interactions"] == summary["ppo"]["interactions"]
     assert combined["ppo"]["train_config"]["reward"] == "potential" and combined["sources"]["ppo_run"] == str(ppo_run)
+    assert combined["ppo"]["train_config"]["lr_decay_steps"] == 0  # the spec recipe: a constant learning rate
     # the training time comes from the run's logged throughput (no bench_done.json for a run trained apart)
     assert 0 < combined["ppo"]["train_s"] < 10 * summary["ppo"]["train_s"] + 60
 
