@@ -43,7 +43,8 @@ from learning_curves import moving_average, ppo_training_episodes  # noqa: E402
 SPEC_WINDOW = 400  # the spec's moving-average window (Fig. learning_curves)
 NEAR_M = 0.05
 GRASPED_POTENTIAL = 0.5  # Pick's potential is -distance + grasped + 2 x lift: above this only while grasped
-UPDATE_TAGS = {"losses/approx_kl": "approx_kl", "losses/clipfrac": "clipfrac", "charts/action_std": "action_std"}
+UPDATE_TAGS = {"losses/approx_kl": "approx_kl", "losses/clipfrac": "clipfrac", "charts/action_std": "action_std",
+               "charts/learning_rate": "learning_rate"}
 
 
 def default_bins(last_step: int) -> list[int]:
@@ -217,7 +218,7 @@ def main(argv: list[str] | None = None) -> None:
     for row in updates:
         print(f"{row['from'] / 1000:>6g}k-{row['to'] / 1000:g}k  {row['updates']:5d} updates, approx KL "
               f"{row.get('approx_kl', math.nan):.3f}, clipped {100 * row.get('clipfrac', math.nan):4.1f}%, action std "
-              f"{row.get('action_std', math.nan):.3f}")
+              f"{row.get('action_std', math.nan):.3f}, learning rate {row.get('learning_rate', math.nan):.2e}")
     if args.png:
         plot(episodes, args.png, f"{args.run.name}: {skill or ''} PPO, {episodes[-1]['global_step']} interactions")
         print(f"wrote {args.png}")

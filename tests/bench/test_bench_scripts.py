@@ -66,19 +66,19 @@ def test_ppo_progress_bins_a_run_by_interactions_and_reads_the_pick_potential(tm
     assert second["median_closest_m"] == 0.0 and second["within_5cm"] == 1.0
     assert ppo_progress.update_rows(run, [0, 50, 100]) == []  # no scalars logged yet
     with open(run / "scalars.jsonl", "w") as f:  # three updates: two in the first bin, one in the second
-        for step, kl, clip, std in ((20, 0.01, 0.1, 0.6), (40, 0.03, 0.3, 0.5), (80, 0.2, 0.6, 0.2)):
+        for step, kl, clip, std, lr in ((20, 0.01, 0.1, 0.6, 3e-4), (40, 0.03, 0.3, 0.5, 2e-4), (80, 0.2, 0.6, 0.2, 0.0)):
             for tag, value in (("losses/approx_kl", kl), ("losses/clipfrac", clip), ("charts/action_std", std),
-                               ("charts/SPS", 900.0)):
+                               ("charts/learning_rate", lr), ("charts/SPS", 900.0)):
                 f.write(json.dumps({"step": step, "tag": tag, "value": value}) + "\n")
         f.write('{"step": 90, "tag": "losses/appr')  # a torn last line
     early, late = ppo_progress.update_rows(run, [0, 50, 100])
     assert early == {"from": 0, "to": 50, "updates": 2, "approx_kl": pytest.approx(0.02), "clipfrac": pytest.approx(0.2),
-                     "action_std": pytest.approx(0.55)}
-    assert (late["updates"], late["approx_kl"], late["action_std"]) == (1, 0.2, 0.2)
+                     "action_std": pytest.approx(0.55), "learning_rate": pytest.approx(2.5e-4)}
+    assert (late["updates"], late["approx_kl"], late["action_std"], late["learning_rate"]) == (1, 0.2, 0.2, 0.0)
     ppo_progress.main([str(run), "--bins", "0,50,100", "--png", str(tmp_path / "p.png")])
     out = capsys.readouterr().out
     assert "6 episodes to step 80, skill pick" in out and "median closest  40.0 cm" in out and _is_png(tmp_path / "p.png")
-    assert "2 updates, approx KL 0.020, clipped 20.0%, action std 0.550" in out
+    assert "2 updates, approx KL 0.020, clipped 20.0%, action std 0.550, learning rate 2.50e-04" in out
     with pytest.raises(SystemExit):
         ppo_progress.main([str(tmp_path / "missing")])
 
