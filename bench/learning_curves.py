@@ -103,6 +103,8 @@ PPO_RECIPES = {
     "cpu": dict(reward="dense", num_steps=1024, num_minibatches=32, update_epochs=4,
                 state_fields=("finger_position", "finger_velocity"), anneal_lr=True),
 }
+SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
+SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
 
 
 def ppo_options(budget: Budget) -> dict:
@@ -111,8 +113,6 @@ def ppo_options(budget: Budget) -> dict:
     if options.pop("anneal_lr", False):
         options["lr_decay_steps"] = budget.ppo_steps
     return options
-SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
-SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
 
 
 # ── collection ───────────────────────────────────────────────────────────────────────────────────────────────────
