@@ -96,23 +96,15 @@ class Budget:
 # PPO from scratch. "spec": the trainer's defaults, the spec's reference configuration (64-step windows, gamma 0.97,
 # clip 0.2), which the spec runs on a GPU batch of envs. "cpu": what learned on two CPU envs (docs/experiments.md, "PPO
 # from scratch on a CPU"): 1024-step windows (2,048 samples per update, the batch of 32 GPU envs at 64 steps), the
-# dense reward, the finger state among the inputs, and the learning rate annealed to 0 at the end of the budget
-# (with a constant rate, training success declined after 3M interactions; annealed, it rose).
+# dense reward, and the finger state among the inputs. Its learning rate stays constant: annealing the last 2M of a 5M
+# run helped, annealing from the first window has not been shown to (docs/experiments.md, "An annealed learning rate").
 PPO_RECIPES = {
     "spec": {},
     "cpu": dict(reward="dense", num_steps=1024, num_minibatches=32, update_epochs=4,
-                state_fields=("finger_position", "finger_velocity"), anneal_lr=True),
+                state_fields=("finger_position", "finger_velocity")),
 }
 SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
 SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
-
-
-def ppo_options(budget: Budget) -> dict:
-    """The recipe's `PPOConfig` options; `anneal_lr` decays the learning rate to 0 at the budget's last step."""
-    options = dict(PPO_RECIPES[budget.ppo_recipe])
-    if options.pop("anneal_lr", False):
-        options["lr_decay_steps"] = budget.ppo_steps
-    return options
 
 
 # ── collection ───────────────────────────────────────────────────────────────────────────────────────────────────
@@ -238,7 +230,7 @@ def train_ppo_checkpoint(budget: Budget, out: Path) -> tuple[Path, float]:
     ckpt = Path(train_ppo(PPOConfig(setting=budget.setting, skill=budget.skill, objects=budget.objects, out=str(out),
                                     total_steps=budget.ppo_steps, seed=budget.seed, init_bc=None,
                                     num_envs=max(1, budget.workers), max_episode_steps=budget.max_steps,
-                                    progress=False, **ppo_options(budget))))
+                                    progress=False, **PPO_RECIPES[budget.ppo_recipe])))
     elapsed = time.monotonic() - started
     _mark_done(out, ckpt, elapsed)
     return ckpt, elapsed
