@@ -350,8 +350,7 @@ def _train_ppo(config: PPOConfig) -> Path:
     while global_step < config.total_steps:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
-        if config.lr_decay_steps:  # set from the step count alone, so a resumed run follows the same schedule
-            optimizer.param_groups[0]["lr"] = learning_rate_at(config, global_step)
+        optimizer.param_groups[0]["lr"] = learning_rate_at(config, global_step)  # from the step count: resumes alike
         # ── rollout window: (T, N) samples ──
         window = collect()
         global_step += T * N
