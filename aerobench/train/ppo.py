@@ -213,11 +213,9 @@ class RunningMeanStd:
         self.mean, self.var, self.count = state["mean"], state["var"], state["count"]
 
 
-def learning_rate_at(config: PPOConfig, global_step: int) -> float:
-    """The learning rate of the window that starts at `global_step` env steps."""
-    if not config.lr_decay_steps:
-        return config.learning_rate
-    return config.learning_rate * max(0.0, 1.0 - global_step / config.lr_decay_steps)
+def linear_decay(step: int, steps: int) -> float:
+    """A weight's factor at `step`: 1 at 0, falling linearly to 0 at `steps` (0: no decay)."""
+    return max(0.0, 1.0 - step / steps) if steps else 1.0
 
 
 def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
@@ -350,7 +348,8 @@ def _train_ppo(config: PPOConfig) -> Path:
     while global_step < config.total_steps:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
-        optimizer.param_groups[0]["lr"] = learning_rate_at(config, global_step)  # from the step count: resumes alike
+        # from the step count alone, so a resumed run follows the same schedule
+        optimizer.param_groups[0]["lr"] = config.learning_rate * linear_decay(global_step, config.lr_decay_steps)
         # ── rollout window: (T, N) samples ──
         window = collect()
         global_step += T * N
@@ -385,9 +384,7 @@ def _train_ppo(config: PPOConfig) -> Path:
         b_actions, b_logprobs = actions.reshape(T * N, -1), logprobs.reshape(-1)
         b_adv, b_returns, b_values = advantages.reshape(-1), returns.reshape(-1), values.reshape(-1)
         warmup = global_step <= config.critic_warmup_steps
-        bc_coef = config.bc_coef
-        if config.bc_decay_steps:
-            bc_coef *= max(0.0, 1.0 - global_step / config.bc_decay_steps)
+        bc_coef = config.bc_coef * linear_decay(global_step, config.bc_decay_steps)
         minibatch = config.batch_size // config.num_minibatches
         stats = {k: [] for k in ("policy_loss", "value_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac", "imitation")}
         for _ in range(config.update_epochs):
