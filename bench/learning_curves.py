@@ -295,7 +295,7 @@ def ppo_result(budget: Budget, ppo_dir: Path, ckpt: Path, train_s: float | None,
         "held_out": held_out(budget, "ppo", ckpt, eval_dir),
         "train_config": {k: train.get(k) for k in ("reward", "num_steps", "num_envs", "num_minibatches",
                                                    "update_epochs", "state_fields", "seed", "gamma", "learning_rate",
-                                                   "lr_decay_steps")},
+                                                   "lr_decay_steps", "lr_decay_start")},
     }
     print(f"  PPO: {result['episodes']} training episodes, {result['successes']} successful, final moving average "
           f"{result['final_moving_average']}; {result['interactions_per_s'] or 0:.0f} interactions/s; held-out "
@@ -455,7 +455,8 @@ def plot(summary: dict, path: Path) -> None:
         t = summary["ppo"].get("train_config") or {}
         recipe = (f"\n{t['reward']} reward, {t['num_steps']}-step windows x {t['num_envs']} envs"
                   + (f", + {', '.join(t['state_fields'])}" if t.get("state_fields") else "")
-                  + (f", lr to 0 at {t['lr_decay_steps'] / 1e6:g}M" if t.get("lr_decay_steps") else "")) if t else ""
+                  + (f", lr to 0 at {t['lr_decay_steps'] / 1e6:g}M" if t.get("lr_decay_steps") else "")
+                  + (f" from {t['lr_decay_start'] / 1e6:g}M" if t.get("lr_decay_start") else "")) if t else ""
         ax.plot(np.maximum(curve["global_step"], 1), curve["success_moving_average"], color="C1",
                 label=f"PPO training success ({summary['budget']['window']}-episode moving average){recipe}")
         h = summary["ppo"]["held_out"]

@@ -91,8 +91,10 @@ class PPOConfig:
     clip_coef: float = field(default=0.2, metadata={"help": "policy clip (spec: 0.2)"})
     gae_lambda: float = field(default=0.95, metadata={"help": "GAE lambda"})
     learning_rate: float = field(default=3e-4, metadata={"help": "Adam learning rate"})
-    lr_decay_steps: int = field(default=0, metadata={"help": "env steps over which the learning rate decays linearly "
-                                "to 0, set before each window (CleanRL's annealing; 0: constant)"})
+    lr_decay_steps: int = field(default=0, metadata={"help": "env step at which the learning rate reaches 0, decaying "
+                                "linearly, set before each window (CleanRL's annealing; 0: constant)"})
+    lr_decay_start: int = field(default=0, metadata={"help": "env step at which that decay begins (constant before: "
+                                "anneal once the skill is found)"})
     update_epochs: int = field(default=10, metadata={"help": "epochs over each window"})
     num_minibatches: int = field(default=4, metadata={"help": "minibatches per epoch"})
     ent_coef: float = field(default=0.0, metadata={"help": "entropy bonus"})
@@ -151,8 +153,12 @@ class PPOConfig:
                              f"({self.num_steps * self.num_envs})")
         if not (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1 and self.clip_coef > 0 and self.learning_rate > 0):
             raise ValueError("need 0 < gamma <= 1, 0 <= gae_lambda <= 1, clip_coef > 0 and learning_rate > 0")
-        if self.bc_coef < 0 or self.critic_warmup_steps < 0 or self.bc_decay_steps < 0 or self.lr_decay_steps < 0:
-            raise ValueError("--bc-coef, --critic-warmup-steps, --bc-decay-steps and --lr-decay-steps must not be negative")
+        if min(self.bc_coef, self.critic_warmup_steps, self.bc_decay_steps, self.lr_decay_steps, self.lr_decay_start) < 0:
+            raise ValueError("--bc-coef, --critic-warmup-steps, --bc-decay-steps, --lr-decay-steps and --lr-decay-start "
+                             "must not be negative")
+        if self.lr_decay_start and not self.lr_decay_start < self.lr_decay_steps:
+            raise ValueError(f"--lr-decay-start ({self.lr_decay_start}) must be below --lr-decay-steps "
+                             f"({self.lr_decay_steps}), the step at which the rate reaches 0")
         if (self.bc_coef > 0 or self.critic_warmup_steps > 0) and not self.init_bc:
             raise ValueError("--bc-coef and --critic-warmup-steps apply to a BC-initialised run: add --init-bc DIR")
         if self.reward not in REWARD_KINDS:
@@ -213,9 +219,9 @@ class RunningMeanStd:
         self.mean, self.var, self.count = state["mean"], state["var"], state["count"]
 
 
-def linear_decay(step: int, steps: int) -> float:
-    """A weight's factor at `step`: 1 at 0, falling linearly to 0 at `steps` (0: no decay)."""
-    return max(0.0, 1.0 - step / steps) if steps else 1.0
+def linear_decay(step: int, steps: int, start: int = 0) -> float:
+    """A weight's factor at `step`: 1 up to `start`, falling linearly to 0 at `steps` (0: no decay)."""
+    return min(1.0, max(0.0, 1.0 - (step - start) / (steps - start))) if steps else 1.0
 
 
 def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
@@ -238,9 +244,10 @@ def _train_ppo(config: PPOConfig) -> Path:
         saved = read_config(checkpoint)
         if saved["algorithm"] != "ppo":
             raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
-        # a run saved before `--reward` (or `--lr-decay-steps`) existed trained with the potential reward (and a
-        # constant learning rate)
-        check_resumable({"reward": "potential", "lr_decay_steps": 0, **saved["train"]}, current, out, RESUMABLE_CHANGES)
+        # a run saved before `--reward` (or the `--lr-decay-*` options) existed trained with the potential reward (and
+        # a constant learning rate)
+        old_defaults = {"reward": "potential", "lr_decay_steps": 0, "lr_decay_start": 0}
+        check_resumable({**old_defaults, **saved["train"]}, current, out, RESUMABLE_CHANGES)
         train_state = load_train_state(checkpoint, out)
         if train_state["global_step"] >= config.total_steps:
             return checkpoint
@@ -349,7 +356,8 @@ def _train_ppo(config: PPOConfig) -> Path:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
         # from the step count alone, so a resumed run follows the same schedule
-        optimizer.param_groups[0]["lr"] = config.learning_rate * linear_decay(global_step, config.lr_decay_steps)
+        optimizer.param_groups[0]["lr"] = config.learning_rate * linear_decay(global_step, config.lr_decay_steps,
+                                                                                   config.lr_decay_start)
         # ── rollout window: (T, N) samples ──
         window = collect()
         global_step += T * N

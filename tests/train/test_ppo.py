@@ -18,7 +18,7 @@ from aerobench.policies.learned import load_weights
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
 from aerobench.train.bc import BCConfig, train_bc
 from aerobench.train.common import read_scalars, torch_threads
-from aerobench.train.ppo import PPOConfig, train_ppo
+from aerobench.train.ppo import PPOConfig, linear_decay, train_ppo
 from aerobench.train.rewards import RewardWeights, closeness, potential, reward
 
 BIN = Path(sys.executable).parent
@@ -123,7 +123,7 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     with open(b / "train_episodes.jsonl", "a") as f:
         f.write(json.dumps({"global_step": 70, "episode": 99, "success": True, "return": 0.0, "length": 1}) + "\n")
     saved = json.loads((b / "checkpoint" / "config.json").read_text())
-    for name in ("reward", "lr_decay_steps"):  # as a run saved before these existed: potential reward, constant lr
+    for name in ("reward", "lr_decay_steps", "lr_decay_start"):  # saved before these existed: potential, constant lr
         del saved["train"][name]
     (b / "checkpoint" / "config.json").write_text(json.dumps(saved))
     b = b.rename(tmp_path / "b_moved")  # a run folder resumes wherever it was moved to
@@ -169,8 +169,18 @@ def test_ppo_learning_rate_decays_with_the_step_count_across_a_resume(tmp_path):
     assert _state(run)["global_step"] == 256
     with pytest.raises(ValueError, match="lr_decay_steps differ"):
         train_ppo(_config(run, 320))  # resumed with a constant rate: refused
-    with pytest.raises(ValueError, match="--lr-decay-steps must not be negative"):
+    with pytest.raises(ValueError, match="lr_decay_start differ"):
+        train_ppo(_config(run, 320, lr_decay_steps=128, lr_decay_start=64))  # or with another schedule
+    with pytest.raises(ValueError, match="--lr-decay-start must not be negative"):
         _config(run, 64, lr_decay_steps=-1)
+    with pytest.raises(ValueError, match=r"--lr-decay-start \(128\) must be below --lr-decay-steps \(128\)"):
+        _config(run, 64, lr_decay_steps=128, lr_decay_start=128)
+
+
+def test_linear_decay_holds_until_its_start_then_falls_to_zero():
+    assert [linear_decay(s, 0) for s in (0, 10**9)] == [1.0, 1.0]  # no schedule: constant
+    assert [linear_decay(s, 100) for s in (0, 25, 100, 150)] == [1.0, 0.75, 0.0, 0.0]
+    assert [linear_decay(s, 100, start=60) for s in (0, 60, 70, 90, 100, 150)] == pytest.approx([1, 1, 0.75, 0.25, 0, 0])
 
 
 def _bc_from_one_short_expert_episode(root: Path, max_steps: int, cameras: bool, **bc) -> Path:
