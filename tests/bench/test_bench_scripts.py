@@ -45,6 +45,15 @@ def test_moving_average_is_a_trailing_window():
     assert ma == pytest.approx([1, 0.5, 0, 0.5, 1, 1])
 
 
+def test_ppo_recipe_anneals_the_cpu_recipe_from_its_start_to_the_budgets_end():
+    assert learning_curves.ppo_recipe("spec", 5_000_000) == {}
+    cpu = learning_curves.ppo_recipe("cpu", 4_000_000)
+    assert (cpu["lr_decay_start"], cpu["lr_decay_steps"], cpu["reward"]) == (1_500_000, 4_000_000, "dense")
+    short = learning_curves.ppo_recipe("cpu", 1_500_000)  # ends where the decay would start: a constant rate
+    assert "lr_decay_start" not in short and "lr_decay_steps" not in short and short["num_steps"] == 1024
+    assert "lr_decay_start" in learning_curves.PPO_RECIPES["cpu"]  # the table itself is not changed by a call
+
+
 def test_ppo_progress_bins_a_run_by_interactions_and_reads_the_pick_potential(tmp_path, capsys):
     assert ppo_progress.default_bins(120_000) == [0, 50_000, 100_000, 150_000]
     assert ppo_progress.default_bins(1_200_000)[-3:] == [900_000, 1_000_000, 1_500_000]
@@ -181,6 +190,7 @@ def test_learning_curves_end_to_end_and_resume(learning_curves_run):
     assert Path(cpu["ppo"]["checkpoint"]).parent.name.endswith("_cpu") and cpu["ppo"]["held_out"]["n"] == 1
     train = json.loads((Path(cpu["ppo"]["checkpoint"]) / "config.json").read_text())["train"]
     assert (train["reward"], train["num_steps"], train["state_fields"]) == ("dense", 1024, ["finger_position", "finger_velocity"])
+    assert (train["lr_decay_start"], train["lr_decay_steps"]) == (0, 0)  # the budget ends before the decay would start
     assert cpu["ppo"]["interactions"] > 100 and cpu["ppo"]["episodes"] >= 1 and cpu["budget"]["ppo_recipe"] == "cpu"
 
 
