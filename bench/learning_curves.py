@@ -105,6 +105,8 @@ PPO_RECIPES = {
     "cpu": dict(reward="dense", num_steps=1024, num_minibatches=32, update_epochs=4,
                 state_fields=("finger_position", "finger_velocity"), lr_decay_start=1_500_000),
 }
+SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
+SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
 
 
 def ppo_recipe(name: str, total_steps: int) -> dict:
@@ -115,10 +117,6 @@ def ppo_recipe(name: str, total_steps: int) -> dict:
     if start and total_steps > start:
         recipe.update(lr_decay_start=start, lr_decay_steps=total_steps)
     return recipe
-
-
-SMALL_OBJECTS = ("master_chef_can",)  # the small budget's one object class (the spec scale uses all)
-SPEC_SCALE = dict(rounds=(1, 2, 4, 8), rollouts_per_round=256, bc_steps=20_000, ppo_steps=5_000_000, eval_per_object=50)
 
 
 # ── collection ───────────────────────────────────────────────────────────────────────────────────────────────────
