@@ -95,6 +95,11 @@ class PPOConfig:
                                 "linearly, set before each window (CleanRL's annealing; 0: constant)"})
     lr_decay_start: int = field(default=0, metadata={"help": "env step at which that decay begins (constant before: "
                                 "anneal once the skill is found)"})
+    lr_decay_at_success: float = field(default=0.0, metadata={"help": "instead of a fixed start: begin the decay after "
+                                       "the first window at which this share of the last 100 training episodes "
+                                       "succeeded (0: off; needs --lr-decay-length)"})
+    lr_decay_length: int = field(default=0, metadata={"help": "with --lr-decay-at-success: env steps from that "
+                                 "window to a rate of 0"})
     update_epochs: int = field(default=10, metadata={"help": "epochs over each window"})
     num_minibatches: int = field(default=4, metadata={"help": "minibatches per epoch"})
     ent_coef: float = field(default=0.0, metadata={"help": "entropy bonus"})
@@ -156,6 +161,14 @@ class PPOConfig:
         if min(self.bc_coef, self.critic_warmup_steps, self.bc_decay_steps, self.lr_decay_steps, self.lr_decay_start) < 0:
             raise ValueError("--bc-coef, --critic-warmup-steps, --bc-decay-steps, --lr-decay-steps and --lr-decay-start "
                              "must not be negative")
+        if not 0 <= self.lr_decay_at_success <= 1 or self.lr_decay_length < 0:
+            raise ValueError("--lr-decay-at-success must lie in [0, 1] and --lr-decay-length must not be negative")
+        if bool(self.lr_decay_at_success) != bool(self.lr_decay_length):
+            raise ValueError("--lr-decay-at-success and --lr-decay-length go together: the share of successes that "
+                             "starts the decay, and the env steps it lasts")
+        if self.lr_decay_at_success and (self.lr_decay_steps or self.lr_decay_start):
+            raise ValueError("--lr-decay-at-success starts the decay when training succeeds; drop --lr-decay-steps and "
+                             "--lr-decay-start, which fix it by the step count")
         if self.lr_decay_start and not self.lr_decay_start < self.lr_decay_steps:
             raise ValueError(f"--lr-decay-start ({self.lr_decay_start}) must be below --lr-decay-steps "
                              f"({self.lr_decay_steps}), the step at which the rate reaches 0")
@@ -224,6 +237,21 @@ def linear_decay(step: int, steps: int, start: int = 0) -> float:
     return min(1.0, max(0.0, 1.0 - (step - start) / (steps - start))) if steps else 1.0
 
 
+def lr_factor(config: PPOConfig, step: int, decay_from: int | None) -> float:
+    """The learning rate's factor at `step`: the fixed schedule (`--lr-decay-start/-steps`), or the decay that began
+    at `decay_from`, the step at which training success first reached `--lr-decay-at-success` (None: not yet)."""
+    if not config.lr_decay_at_success:
+        return linear_decay(step, config.lr_decay_steps, config.lr_decay_start)
+    return 1.0 if decay_from is None else linear_decay(step, decay_from + config.lr_decay_length, decay_from)
+
+
+def success_triggered(config: PPOConfig, recent: list[bool]) -> bool:
+    """Whether the last SUCCESS_WINDOW training episodes reach `--lr-decay-at-success` (a full window is needed, so a
+    lucky first episode does not start the decay)."""
+    return bool(config.lr_decay_at_success) and len(recent) == SUCCESS_WINDOW and \
+        sum(recent) >= config.lr_decay_at_success * SUCCESS_WINDOW - 1e-9  # 0.07 x 100 is 7.000000000000001
+
+
 def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
     return {k: v[index] for k, v in storage.items()}
 
@@ -246,7 +274,8 @@ def _train_ppo(config: PPOConfig) -> Path:
             raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
         # a run saved before `--reward` (or the `--lr-decay-*` options) existed trained with the potential reward (and
         # a constant learning rate)
-        old_defaults = {"reward": "potential", "lr_decay_steps": 0, "lr_decay_start": 0}
+        old_defaults = {"reward": "potential", "lr_decay_steps": 0, "lr_decay_start": 0, "lr_decay_at_success": 0.0,
+                        "lr_decay_length": 0}
         check_resumable({**old_defaults, **saved["train"]}, current, out, RESUMABLE_CHANGES)
         train_state = load_train_state(checkpoint, out)
         if train_state["global_step"] >= config.total_steps:
@@ -254,6 +283,7 @@ def _train_ppo(config: PPOConfig) -> Path:
     global_step = train_state["global_step"] if train_state else 0
     iteration = train_state["iteration"] if train_state else 0
     episodes_done = train_state["episodes"] if train_state else 0
+    lr_decay_from = train_state.get("lr_decay_from") if train_state else None
 
     # ── networks ──
     seed_everything(config.seed)
@@ -335,13 +365,17 @@ def _train_ppo(config: PPOConfig) -> Path:
                    **{f"critic.{k}": v for k, v in critic.state_dict().items()}, "log_std": log_std.detach()}
         state = {"global_step": global_step, "iteration": iteration, "episodes": episodes_done,
                  "episodes_started": episodes_started, "optimizer": optimizer.state_dict(),
-                 "torch_rng": torch.get_rng_state(), "obs_rms": obs_rms.state() if obs_rms else None}
+                 "torch_rng": torch.get_rng_state(), "obs_rms": obs_rms.state() if obs_rms else None,
+                 "lr_decay_from": lr_decay_from}
         return save_checkpoint(out, meta, weights, normalizer.as_dict(), state, starts())
 
     T, N = config.num_steps, config.num_envs
     out.mkdir(parents=True, exist_ok=True)
     episodes_path = out / EPISODES_FILE
     truncate_jsonl(episodes_path, "global_step", global_step)
+    # the success window carries over a resume (it decides --lr-decay-at-success)
+    lines = [line for line in episodes_path.read_text().splitlines() if line.strip()] if episodes_path.exists() else []
+    recent = [json.loads(line)["success"] for line in lines[-SUCCESS_WINDOW:]]
     episode_log = open(episodes_path, "a")
     log = ScalarLog(out, global_step)
     bar = None
@@ -350,14 +384,12 @@ def _train_ppo(config: PPOConfig) -> Path:
 
         bar = tqdm(total=config.total_steps, initial=global_step, unit="step", desc=f"ppo {config.skill}", dynamic_ncols=True)
 
-    recent: list[bool] = []
     path = checkpoint
     while global_step < config.total_steps:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
         # from the step count alone, so a resumed run follows the same schedule
-        optimizer.param_groups[0]["lr"] = config.learning_rate * linear_decay(global_step, config.lr_decay_steps,
-                                                                                   config.lr_decay_start)
+        optimizer.param_groups[0]["lr"] = config.learning_rate * lr_factor(config, global_step, lr_decay_from)
         # ── rollout window: (T, N) samples ──
         window = collect()
         global_step += T * N
@@ -373,6 +405,9 @@ def _train_ppo(config: PPOConfig) -> Path:
                 k: episode[k] for k in ("success", "return", "length", "outcome", "peak_potential")}}) + "\n")
             log.add("charts/episodic_return", episode["return"], step)
             log.add("charts/episodic_length", episode["length"], step)
+        if lr_decay_from is None and success_triggered(config, recent):
+            lr_decay_from = global_step  # the rate falls linearly from here (the window after next is the first lowered)
+            log.add("charts/lr_decay_from", global_step, global_step)
         if obs_rms is not None:  # from scratch: state statistics follow what the policy sees
             obs_rms.update(window.raw_state.reshape(-1, state_dim))
             normalizer.state_mean.copy_(obs_rms.mean)

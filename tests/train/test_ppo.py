@@ -18,7 +18,7 @@ from aerobench.policies.learned import load_weights
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
 from aerobench.train.bc import BCConfig, train_bc
 from aerobench.train.common import read_scalars, torch_threads
-from aerobench.train.ppo import PPOConfig, linear_decay, train_ppo
+from aerobench.train.ppo import SUCCESS_WINDOW, PPOConfig, linear_decay, lr_factor, success_triggered, train_ppo
 from aerobench.train.rewards import RewardWeights, closeness, potential, reward
 
 BIN = Path(sys.executable).parent
@@ -123,7 +123,8 @@ def test_ppo_is_deterministic_and_resumes(tmp_path):
     with open(b / "train_episodes.jsonl", "a") as f:
         f.write(json.dumps({"global_step": 70, "episode": 99, "success": True, "return": 0.0, "length": 1}) + "\n")
     saved = json.loads((b / "checkpoint" / "config.json").read_text())
-    for name in ("reward", "lr_decay_steps", "lr_decay_start"):  # saved before these existed: potential, constant lr
+    # saved before these existed: potential reward, constant learning rate
+    for name in ("reward", "lr_decay_steps", "lr_decay_start", "lr_decay_at_success", "lr_decay_length"):
         del saved["train"][name]
     (b / "checkpoint" / "config.json").write_text(json.dumps(saved))
     b = b.rename(tmp_path / "b_moved")  # a run folder resumes wherever it was moved to
@@ -175,6 +176,44 @@ def test_ppo_learning_rate_decays_with_the_step_count_across_a_resume(tmp_path):
         _config(run, 64, lr_decay_steps=-1)
     with pytest.raises(ValueError, match=r"--lr-decay-start \(128\) must be below --lr-decay-steps \(128\)"):
         _config(run, 64, lr_decay_steps=128, lr_decay_start=128)
+
+
+def test_ppo_learning_rate_decays_once_training_succeeds_and_the_trigger_survives_a_resume(tmp_path):
+    run = tmp_path / "trigger"
+    train_ppo(_config(run, 64, lr_decay_at_success=0.03, lr_decay_length=128))
+    assert _state(run)["lr_decay_from"] is None  # 24-step episodes from scratch never succeed: the rate holds
+    # the success window is rebuilt from the run's episode log on a resume: let its last 100 hold 3 successes
+    rows = [{"global_step": 64, "episode": k + 1, "success": k >= SUCCESS_WINDOW - 3, "return": 0.0, "length": 1}
+            for k in range(SUCCESS_WINDOW)]
+    (run / "train_episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    train_ppo(_config(run, 256, lr_decay_at_success=0.03, lr_decay_length=128))
+    # the next window's failures keep 3 of the last 100 as successes: the decay starts at 128 and ends at 256
+    assert read_scalars(run, "charts/lr_decay_from") == [(128, 128)]
+    assert read_scalars(run, "charts/learning_rate") == [(64, pytest.approx(3e-4)), (128, pytest.approx(3e-4)),
+                                                         (192, pytest.approx(3e-4)), (256, pytest.approx(1.5e-4))]
+    assert _state(run)["lr_decay_from"] == 128
+    train_ppo(_config(run, 320, lr_decay_at_success=0.03, lr_decay_length=128))  # resumed: the start is kept
+    assert read_scalars(run, "charts/learning_rate")[-1] == (320, 0.0)
+    with pytest.raises(ValueError, match="lr_decay_at_success differ"):
+        train_ppo(_config(run, 384, lr_decay_at_success=0.05, lr_decay_length=128))
+    with pytest.raises(ValueError, match="--lr-decay-at-success and --lr-decay-length go together"):
+        _config(run, 64, lr_decay_at_success=0.03)
+    with pytest.raises(ValueError, match="drop --lr-decay-steps and --lr-decay-start"):
+        _config(run, 64, lr_decay_at_success=0.03, lr_decay_length=128, lr_decay_steps=256)
+    with pytest.raises(ValueError, match=r"--lr-decay-at-success must lie in \[0, 1\]"):
+        _config(run, 64, lr_decay_at_success=3, lr_decay_length=128)
+
+
+def test_the_success_trigger_needs_a_full_window_and_the_factor_follows_its_start():
+    config = _config(Path("unused"), 64, lr_decay_at_success=0.03, lr_decay_length=100)
+    assert not success_triggered(config, [True] * 3)  # three lucky first episodes: not yet a full window
+    assert not success_triggered(config, [False] * 98 + [True] * 2)
+    assert success_triggered(config, [True] * 3 + [False] * 97)
+    assert not success_triggered(_config(Path("unused"), 64), [True] * 100)  # no trigger asked for
+    assert [lr_factor(config, s, None) for s in (0, 10**9)] == [1.0, 1.0]  # not triggered: constant
+    assert [lr_factor(config, s, 500) for s in (400, 500, 550, 600, 700)] == pytest.approx([1, 1, 0.5, 0, 0])
+    fixed = _config(Path("unused"), 64, lr_decay_steps=100, lr_decay_start=60)
+    assert [lr_factor(fixed, s, 10) for s in (0, 70, 100)] == pytest.approx([1, 0.75, 0])  # the step count alone
 
 
 def test_linear_decay_holds_until_its_start_then_falls_to_zero():
