@@ -388,7 +388,7 @@ def _train_ppo(config: PPOConfig) -> Path:
     while global_step < config.total_steps:
         iteration += 1
         t0, window_start = time.perf_counter(), global_step
-        # from the step count alone, so a resumed run follows the same schedule
+        # from the step count (and the trigger's step, kept in the train state), so a resumed run keeps its schedule
         optimizer.param_groups[0]["lr"] = config.learning_rate * lr_factor(config, global_step, lr_decay_from)
         # ── rollout window: (T, N) samples ──
         window = collect()
