@@ -58,14 +58,17 @@ def load_train_state(checkpoint: Path, out: Path) -> dict:
     return torch.load(path, weights_only=False)
 
 
-def truncate_jsonl(path: Path, key: str, upto: int) -> None:
-    """Drop rows with `row[key] > upto`: what an interrupted run logged after its last checkpoint is redone."""
+def truncate_jsonl(path: Path, key: str, upto: int) -> list[dict]:
+    """Drop rows with `row[key] > upto`: what an interrupted run logged after its last checkpoint is redone. Returns
+    the rows kept."""
     if not path.exists():
-        return
-    rows = [line for line in path.read_text().splitlines() if line.strip()]
-    kept = [line for line in rows if json.loads(line)[key] <= upto]
+        return []
+    lines = [line for line in path.read_text().splitlines() if line.strip()]
+    rows = [json.loads(line) for line in lines]
+    kept = [(line, row) for line, row in zip(lines, rows) if row[key] <= upto]
     if len(kept) != len(rows):
-        path.write_text("".join(line + "\n" for line in kept))
+        path.write_text("".join(line + "\n" for line, _ in kept))
+    return [row for _, row in kept]
 
 
 class ScalarLog:

@@ -372,10 +372,8 @@ def _train_ppo(config: PPOConfig) -> Path:
     T, N = config.num_steps, config.num_envs
     out.mkdir(parents=True, exist_ok=True)
     episodes_path = out / EPISODES_FILE
-    truncate_jsonl(episodes_path, "global_step", global_step)
     # the success window carries over a resume (it decides --lr-decay-at-success)
-    lines = [line for line in episodes_path.read_text().splitlines() if line.strip()] if episodes_path.exists() else []
-    recent = [json.loads(line)["success"] for line in lines[-SUCCESS_WINDOW:]]
+    recent = [row["success"] for row in truncate_jsonl(episodes_path, "global_step", global_step)[-SUCCESS_WINDOW:]]
     episode_log = open(episodes_path, "a")
     log = ScalarLog(out, global_step)
     bar = None
