@@ -100,6 +100,7 @@ class Budget:
 # that lifted found it at 830k and 968k), then falling linearly to 0 at the budget's end: at a constant rate success
 # peaked near 2.5M and declined, annealed after the lift it kept rising (docs/experiments.md, "Constant until 1.5M").
 # A run that lifts after 1.5M gets too little rate to build on it (seed 2: the lift at 1.87M, 6/180 at 4M).
+# `train ppo --lr-decay-at-success` starts the decay from training success instead (seed 2: 18/180 at 5.12M).
 PPO_RECIPES = {
     "spec": {},
     "cpu": dict(reward="dense", num_steps=1024, num_minibatches=32, update_epochs=4,
