@@ -44,8 +44,7 @@ import numpy as np  # noqa: E402
 
 HELD_OUT_SEED = 4_000  # evaluation starts, far from the collection rounds (seeds 1..8); seed * 1000003 + i < 2**32
 SKILLS = ("pick", "place")  # the spec's learning curves are on Pick; the issue asks for Place too
-DONE_FILE = "bench_done.json"
-EPISODES_FILE = "aerobench_episodes.jsonl"  # the export's per-episode annotation, in meta/  # written after a training run returned: its presence means "reuse"
+DONE_FILE = "bench_done.json"  # written after a training run returned: its presence means "reuse"
 
 # The spec's text next to the figure ("Evaluation of Data Generation Strategies").
 SPEC = {
@@ -181,11 +180,9 @@ def transitions(root: Path) -> int:
 
 
 def cumulative_dataset(rounds: list[Path], dst: Path) -> Path | None:
-    """One dataset with the kept episodes of `rounds`, in order, with the annotation BC selects episodes by
-    (`meta/aerobench_episodes.jsonl`, renumbered). Built once into a temporary folder, then renamed into place."""
-    from lerobot.datasets.aggregate import aggregate_datasets
-
-    from aerobench.export.sink import read_jsonl, write_jsonl
+    """One dataset with the kept episodes of `rounds`, in order (`aerobench dataset join`). Built once into a
+    temporary folder, then renamed into place."""
+    from aerobench.export.tools import join_datasets
 
     sources = [r for r in rounds if (r / "meta" / "info.json").is_file()]
     if not sources:
@@ -196,10 +193,7 @@ def cumulative_dataset(rounds: list[Path], dst: Path) -> Path | None:
         return dst
     work = dst.with_name(dst.name + ".tmp")
     shutil.rmtree(work, ignore_errors=True)
-    aggregate_datasets(["local/aerobench-round"] * len(sources), f"local/{dst.name}", roots=sources, aggr_root=work)
-    rows = [row for src in sources for row in sorted(read_jsonl(src / "meta" / EPISODES_FILE),
-                                                     key=lambda r: r["dataset_episode_index"])]
-    write_jsonl(work / "meta" / EPISODES_FILE, [{**row, "dataset_episode_index": i} for i, row in enumerate(rows)])
+    join_datasets(sources, work)
     (work / DONE_FILE).write_text(json.dumps({"sources": [str(s) for s in sources]}) + "\n")
     shutil.rmtree(dst, ignore_errors=True)
     work.rename(dst)

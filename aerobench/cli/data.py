@@ -18,7 +18,12 @@ def add_generate(sub) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--shard", type=parse_shard, default=(0, 1), help="i/k: this process runs the i-th of k contiguous blocks of the episodes")
     p.add_argument("--keep", choices=("success", "all"), default="success", help="which episodes enter the dataset")
-    p.add_argument("--policy", default="expert", help="expert (default) or random")
+    p.add_argument("--policy", default="expert", help="the policy that flies: expert (default), random, or a "
+                                                      "learned one (bc, ppo, ...) with --checkpoint")
+    p.add_argument("--checkpoint", default=None, help="checkpoint of a learned --policy (e.g. RUN/checkpoint)")
+    p.add_argument("--label-with", default=None, choices=("expert",),
+                   help="DAgger: the --policy flies and the dataset records the expert's action at each state it "
+                        "visits (keep every outcome: --keep all; docs/datasets.md)")
     p.add_argument("--platform", default=None, help="gripper or arm (default: the skill's)")
     p.add_argument("--controller", default="payload-aware", help="payload-aware or nominal")
     p.add_argument("--no-cameras", action="store_true", help="state-only episodes (much faster; no image features)")
@@ -43,7 +48,8 @@ def _run_generate(args) -> int:
             raise ValueError("--ray runs every shard itself; leave out --shard")
         spec = RolloutSpec(
             setting=args.setting, skills=args.skills, episodes=args.episodes, objects=args.objects,
-            num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, platform=args.platform,
+            num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, checkpoint=args.checkpoint,
+            labeler=args.label_with, platform=args.platform,
             controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
             rendering=args.render, action_noise=args.action_noise,
         )
@@ -52,8 +58,14 @@ def _run_generate(args) -> int:
 
             require_ray_tracing()  # this machine renders the episodes: say now if it cannot
         from ..envs.control.payload import ControllerMode
-        from ..policies.registry import POLICIES, make_policy  # noqa: F401
+        from ..policies.registry import policy_needs_images
+        from ..rollout.chained import split_checkpoints
 
+        if args.checkpoint and args.policy in ("expert", "random"):
+            raise ValueError(f"the {args.policy} policy takes no --checkpoint")
+        # also the early check of a learned policy's checkpoint, before any folder is written
+        if any(policy_needs_images(args.policy, c) for c in split_checkpoints(args.checkpoint).values()) and args.no_cameras:
+            raise ValueError(f"policy {args.policy} reads the cameras; drop --no-cameras")
         ControllerMode.parse(args.controller)
         if args.platform:
             from ..envs.platforms import get_platform
@@ -92,7 +104,7 @@ def _generate_on_ray(args, spec, generate_on_ray) -> int:
 
 
 def add_dataset(sub) -> None:
-    p = sub.add_parser("dataset", help="inspect, merge or filter an exported dataset")
+    p = sub.add_parser("dataset", help="inspect, merge, join or filter exported datasets")
     verbs = p.add_subparsers(dest="verb", required=True, parser_class=Parser)
     info = verbs.add_parser("info", help="episode counts by setting, skill, object, outcome and mode")
     info.add_argument("root")
@@ -100,6 +112,11 @@ def add_dataset(sub) -> None:
     merge = verbs.add_parser("merge", help="merge the parts (and shards) of a dataset folder into its LeRobot dataset")
     merge.add_argument("root")
     merge.set_defaults(func=_run_dataset_merge)
+    join = verbs.add_parser("join", help="one dataset with every episode of several (e.g. demonstrations and their "
+                                         "DAgger rounds)")
+    join.add_argument("roots", nargs="+", help="merged aerobench dataset folders, in the order their episodes go")
+    join.add_argument("--out", required=True, help="the joined dataset's folder (new)")
+    join.set_defaults(func=_run_dataset_join)
     filt = verbs.add_parser("filter", help="a new dataset with only the matching episodes")
     filt.add_argument("root")
     filt.add_argument("--out", required=True)
@@ -135,6 +152,17 @@ def _run_dataset_merge(args) -> int:
     except ValueError as e:
         raise UserError(str(e)) from None
     print(f"merged into {out}" if out else "no kept episode to merge")
+    return 0
+
+
+def _run_dataset_join(args) -> int:
+    from ..export.tools import join_datasets
+
+    try:
+        out = join_datasets([_dataset_root(r) for r in args.roots], Path(args.out))
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"wrote {out}")
     return 0
 
 

@@ -28,6 +28,9 @@ def generate_command(spec: dict, out: str | Path) -> str:
         parts.append(f"--platform {spec['platform']}")
     if not spec.get("record_cameras", True):
         parts.append("--no-cameras")
+    for key, option in (("checkpoint", "checkpoint"), ("labeler", "label-with"), ("action_noise", "action-noise")):
+        if spec.get(key):
+            parts.append(f"--{option} {spec[key]}")
     return " ".join([*parts, f"--out {out}"])
 
 

@@ -1,7 +1,9 @@
-"""Dataset tools: what a dataset holds (`dataset_info`, `format_info`), a filtered copy (`filter_dataset`), merging
-shards' parts (`merge`) and reclaiming the parts' disk space (`clean_parts`).
+"""Dataset tools: what a dataset holds (`dataset_info`, `format_info`), a filtered copy (`filter_dataset`), several
+datasets as one (`join_datasets`), merging shards' parts (`merge`) and reclaiming the parts' disk space
+(`clean_parts`).
 
-`aerobench dataset info DIR` prints `format_info(dataset_info(DIR))`; `aerobench dataset merge DIR` calls `merge(DIR)`.
+`aerobench dataset info DIR` prints `format_info(dataset_info(DIR))`; `aerobench dataset merge DIR` calls `merge(DIR)`;
+`aerobench dataset join A B --out C` calls `join_datasets([A, B], C)`.
 """
 
 from __future__ import annotations
@@ -180,6 +182,60 @@ def filter_dataset(
     meta = {k: v for k, v in meta.items() if k != "parts"}
     meta.update(source=str(src), filter=chosen)
     (dst / "meta" / DATASET_META_FILE).write_text(json.dumps(meta, indent=2) + "\n")
+    return dst
+
+
+def join_datasets(sources: Iterable[str | Path], dst_root: str | Path) -> Path:
+    """Write one LeRobot dataset at `dst_root` with every episode of `sources`, in order (LeRobot's
+    `aggregate_datasets`), e.g. expert demonstrations and the DAgger rounds that followed them.
+
+    dst/meta/aerobench_episodes.jsonl holds the sources' rows with `dataset_episode_index` renumbered, so BC selects
+    episodes and reads their starts as from any aerobench dataset. The sources must share their features and task
+    state version. Built in a temporary folder and renamed into place: an interrupted join leaves no dataset.
+    """
+    from lerobot.datasets.aggregate import aggregate_datasets
+
+    srcs, dst = [Path(s) for s in sources], Path(dst_root)
+    if len(srcs) < 2:
+        raise ValueError("give at least two datasets to join")
+    infos = []
+    for src in srcs:
+        info = _lerobot_info(src)
+        if info is None or not (src / "meta" / EPISODES_FILE).is_file():
+            raise ValueError(f"{src} holds no merged aerobench dataset (run `aerobench dataset merge {src}` first)")
+        infos.append(info)
+    first = _feature_table(infos[0]["features"])
+    for src, info in zip(srcs[1:], infos[1:]):
+        differ = sorted(k for k in set(first) | set(_feature_table(info["features"]))
+                        if first.get(k) != _feature_table(info["features"]).get(k))
+        if differ:
+            raise ValueError(f"{src} and {srcs[0]} differ in features {', '.join(differ)}; join datasets recorded "
+                             f"alike (the same platform, cameras or not)")
+    metas = [read_dataset_meta(src) or {} for src in srcs]
+    versions = {int(m.get("generation", {}).get("task_state_version", 1)) for m in metas if m}
+    if len(versions) > 1:
+        raise ValueError(f"the datasets were recorded with task state versions {sorted(versions)}; regenerate the "
+                         f"older ones to join them")
+    if dst.exists() and (not dst.is_dir() or any(dst.iterdir())):
+        raise ValueError(f"{dst} already exists and is not empty; choose another output folder")
+    rows = []
+    for src, info in zip(srcs, infos):
+        own = sorted(read_jsonl(src / "meta" / EPISODES_FILE), key=lambda r: r["dataset_episode_index"])
+        if len(own) != info["total_episodes"]:
+            raise ValueError(f"{src}: {EPISODES_FILE} lists {len(own)} episodes, the dataset has {info['total_episodes']}")
+        rows += own
+    work = dst.with_name(dst.name + ".joining")
+    shutil.rmtree(work, ignore_errors=True)
+    aggregate_datasets([FILTERED_REPO_ID] * len(srcs), f"local/{dst.name}", roots=srcs, aggr_root=work)
+    write_jsonl(work / "meta" / EPISODES_FILE, [{**row, "dataset_episode_index": i} for i, row in enumerate(rows)])
+    # "generation" stays the first source's (the setting, platform and task state version they share); each
+    # source's own generation spec is kept beside its folder
+    meta = {k: v for k, v in metas[0].items() if k != "parts"}
+    meta["sources"] = [{"root": str(src), "generation": m.get("generation")} for src, m in zip(srcs, metas)]
+    (work / "meta" / DATASET_META_FILE).write_text(json.dumps(meta, indent=2) + "\n")
+    if dst.exists():
+        dst.rmdir()
+    work.rename(dst)
     return dst
 
 

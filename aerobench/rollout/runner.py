@@ -58,6 +58,9 @@ class RolloutSpec:
     rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
     action_noise: float = 0.0  # DART: executed flight commands get N(0, sigma^2); the recorded action stays clean
+    # DAgger (Ross et al., 2011): `policy` flies, and each frame records this policy's action and phase instead, the
+    # correction at the states the flying policy visits ("expert", the one policy that labels states it did not reach)
+    labeler: str | None = None
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -92,6 +95,15 @@ class RolloutSpec:
             raise ValueError(f"--num-envs must be at least 1, got {self.num_envs}")
         if self.chained and not chains:
             raise ValueError("the chained protocol runs a chain: give one chain, e.g. --chain pick,transport,place")
+        if self.labeler is not None:
+            if self.labeler != "expert":
+                raise ValueError(f"--label-with takes expert (the privileged expert labels the states another policy "
+                                 f"flies to), got {self.labeler!r}")
+            if self.policy == self.labeler:
+                raise ValueError("--label-with expert labels another policy's flight: give --policy a learned policy "
+                                 "and its --checkpoint (e.g. --policy bc --checkpoint RUN/checkpoint)")
+            if self.chained:
+                raise ValueError("--label-with labels single-skill or chain rollouts, not the chained protocol's")
         if self.sim_backend == "physx_cpu" and self.num_envs != 1:
             raise ValueError("physx_cpu runs one env per process: use --shard i/k to run several processes")
 
@@ -111,6 +123,7 @@ class RolloutSpec:
             **({"physx_solver": self.physx_solver} if self.physx_solver != "tgs" else {}),
             **({"rendering": self.rendering} if self.rendering != DEFAULT_RENDERING else {}),
             **({"action_noise": self.action_noise} if self.action_noise else {}),
+            **({"labeler": self.labeler} if self.labeler else {}),
         }
 
 
@@ -241,14 +254,18 @@ class RolloutRunner:
         else:
             checkpoint = checkpoint_for(split_checkpoints(self.spec.checkpoint), skill)  # one, or one per skill
             policy, monitor = make_policy(self.spec.policy, base, checkpoint=checkpoint), None
+        labeler = make_policy(self.spec.labeler, base) if self.spec.labeler else None
         policy.reset(torch.arange(n, device=base.device))
+        if labeler is not None:
+            labeler.reset(torch.arange(n, device=base.device))
         max_steps = episode_limit(env)
         evaluators = [ev.skill for ev in base.evaluators]
         active = torch.ones(n, dtype=torch.bool)
         active[len(plans):] = False
         init_failed = info["init_failed"].cpu().clone()
-        if hasattr(policy, "infeasible"):  # the expert's planner rejects starts it has no route from
-            init_failed |= policy.infeasible().cpu()
+        for actor in (policy, labeler):
+            if hasattr(actor, "infeasible"):  # the expert's planner rejects starts it has no route from
+                init_failed |= actor.infeasible().cpu()
         active &= ~init_failed
         steps = torch.zeros(n, dtype=torch.long)
         truncated_at = torch.zeros(n, dtype=torch.bool)
@@ -263,7 +280,10 @@ class RolloutRunner:
             action = policy.act(obs)
             if not torch.isfinite(action).all():
                 raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")
-            frame = self._frame(obs, action, base, policy, third_person)  # records the policy's own action
+            if labeler is None:
+                frame = self._frame(obs, action, base, policy, third_person)  # records the policy's own action
+            else:  # the expert acts on every step (its phases follow the flight) but only its label is kept
+                frame = self._frame(obs, labeler.act(obs), base, labeler, third_person)
             obs, _, terminated, truncated, info = env.step(perturb(action))
             frames.append(frame)
             signals.append({k: v.detach().cpu() for k, v in info.items() if torch.is_tensor(v) and v.shape[:1] == (n,)})
@@ -351,6 +371,7 @@ class RolloutRunner:
             "instruction": task,
             "chain": plan.skill if spec.is_chain else None,
             "init_failed": init_failed,
+            **({"labeler": spec.labeler} if spec.labeler else {}),
         }
         kept = {k: trace[k] for k in spec.keep_signals if k in trace}
         return EpisodeData(record=record, frames=data, task=task, skills=tuple(evaluators), extra=extra, signals=kept)

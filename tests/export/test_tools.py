@@ -122,3 +122,29 @@ def test_clean_parts_then_new_parts_are_appended(tmp_path):
     resumed.close()
     rows = assert_aligned(root, range(6))
     assert [r["episode_index"] for r in rows] == list(range(6))
+
+
+def test_join_puts_every_episode_of_several_datasets_in_one(sharded_root, tmp_path):
+    failures = tools.filter_dataset(sharded_root, tmp_path / "failures", outcomes=["F", "T"])
+    joined = tools.join_datasets([sharded_root, failures], tmp_path / "joined")
+    rows = assert_aligned(joined, [*EPISODES, 1, 3, 5])  # each row still describes its episode, renumbered
+    first = sorted(read_jsonl(sharded_root / "meta" / EPISODES_FILE), key=lambda r: r["dataset_episode_index"])
+    assert [r["episode_index"] for r in rows] == [r["episode_index"] for r in first] + [1, 3, 5]  # in order
+    assert tools.dataset_info(joined)["counts"]["outcome"] == {"S": 3, "F": 4, "T": 2}
+    meta = json.loads((joined / "meta" / "aerobench.json").read_text())
+    assert [s["root"] for s in meta["sources"]] == [str(sharded_root), str(failures)] and "parts" not in meta
+    assert meta["generation"]["setting"] == "TidyHouse"  # what BC reads the task state version from
+
+    with pytest.raises(ValueError, match="at least two"):
+        tools.join_datasets([sharded_root], tmp_path / "one")
+    with pytest.raises(ValueError, match="not empty"):
+        tools.join_datasets([sharded_root, failures], joined)
+    with pytest.raises(ValueError, match="holds no merged aerobench dataset"):
+        tools.join_datasets([sharded_root, tmp_path], tmp_path / "nothing")
+    cameras = tmp_path / "cameras"
+    sink = DatasetSink(cameras, SPEC, keep=None, part_size=8)
+    sink.write(episode(0, cameras=True, steps=2))
+    sink.close()
+    with pytest.raises(ValueError, match="differ in features observation.depth.drone_front"):
+        tools.join_datasets([sharded_root, cameras], tmp_path / "mixed")
+    assert not (tmp_path / "one").exists() and not (tmp_path / "mixed").exists()

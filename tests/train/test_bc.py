@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from torch.nn import functional as F
@@ -16,7 +17,7 @@ from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.inputs import InputSpec
 from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
-from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+from aerobench.rollout.runner import SEED_STRIDE, RolloutRunner, RolloutSpec
 from aerobench.train.bc import (
     BCConfig,
     flight_mse,
@@ -391,3 +392,70 @@ def test_a_camera_dataset_reads_without_torchcodec_traceback_and_in_lerobot_data
           "--save", "1", "--output-dir", str(tmp_path / "viz"), "--num-workers", "0"], cwd=tmp_path)
     (rrd,) = (tmp_path / "viz").glob("*.rrd")
     assert rrd.stat().st_size > 10_000
+
+
+def _flown_and_recorded(monkeypatch, **spec_kw):
+    """One TidyHouse Pick episode (seed 5, 40 steps): the runner's episode and the actions the env executed."""
+    from aerobench.rollout.episode import EpisodeList
+    from tests.rollout.test_noise import _Executed
+
+    spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=1, objects=("master_chef_can",), seed=5,
+                       record_cameras=False, max_steps=40, **spec_kw)
+    sink = EpisodeList()
+    runner = RolloutRunner(spec, sink)
+    make_env, wrapped = runner._env, {}
+
+    def env_with_spy(skill):
+        if skill not in wrapped:
+            wrapped[skill] = _Executed(make_env(skill))
+        return wrapped[skill]
+
+    monkeypatch.setattr(runner, "_env", env_with_spy)
+    with torch_threads(1):
+        runner.run()
+    episode = sink.episodes[0]
+    return episode, np.concatenate(wrapped["pick"].executed)[: episode.num_frames]
+
+
+def test_dagger_the_bc_flies_and_the_expert_labels_every_state_it_visits(trained, monkeypatch):
+    bc, bc_flown = _flown_and_recorded(monkeypatch, policy="bc", checkpoint=str(trained))
+    dagger, dagger_flown = _flown_and_recorded(monkeypatch, policy="bc", checkpoint=str(trained), labeler="expert")
+    expert, _ = _flown_and_recorded(monkeypatch, policy="expert")
+    # the labels never reach the env: the same flight as the BC's alone, state for state
+    assert np.array_equal(dagger_flown, bc_flown) and np.array_equal(dagger.frames["state"], bc.frames["state"])
+    assert np.array_equal(bc.frames["action"], bc_flown)  # without a labeler the policy's own action is recorded
+    labels = dagger.frames["action"]
+    assert np.abs(labels - dagger_flown).max() > 0.05  # recorded: not what flew
+    assert np.allclose(labels[0], expert.frames["action"][0])  # the same start: the expert's own first command
+    assert (dagger.frames["phase"] >= 0).all() and (bc.frames["phase"] == -1).all()  # the labeler's phases
+    assert dagger.record.policy == "bc" and dagger.extra["labeler"] == "expert" and "labeler" not in bc.extra
+    spec = dict(setting="TidyHouse", skills=("pick",), episodes=1)
+    assert RolloutSpec(**spec, policy="bc", checkpoint="x", labeler="expert").as_dict()["labeler"] == "expert"
+    assert "labeler" not in RolloutSpec(**spec).as_dict()  # runs without one keep their spec (and stay resumable)
+    with pytest.raises(ValueError, match="labels another policy's flight"):
+        RolloutSpec(**spec, labeler="expert")
+    with pytest.raises(ValueError, match="--label-with takes expert"):
+        RolloutSpec(**spec, policy="bc", checkpoint="x", labeler="random")
+
+
+def test_dagger_from_the_command_line_joined_with_the_demonstrations_and_trained_on(state_dataset, trained, tmp_path):
+    aero = str(BIN / "aerobench")
+    rounds = tmp_path / "round1"
+    _run([aero, "generate", "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can", "--episodes",
+          "1", "--seed", "5", "--no-cameras", "--policy", "bc", "--checkpoint", str(trained), "--label-with", "expert",
+          "--keep", "all", "--out", str(rounds)], cwd=tmp_path)
+    assert "--label-with expert" in (rounds / "README.md").read_text()  # the card's generate command
+    joined = tmp_path / "joined"
+    _run([aero, "dataset", "join", str(state_dataset), str(rounds), "--out", str(joined)], cwd=tmp_path)
+    rows = read_jsonl(joined / "meta" / "aerobench_episodes.jsonl")
+    assert [(r["policy"], r["dataset_episode_index"]) for r in rows] == [("expert", 0), ("expert", 1), ("bc", 2)]
+    out = tmp_path / "bc1"
+    _run([aero, "train", "bc", "--dataset", str(joined), "--out", str(out), "--steps", "2", "--outcomes", "S,F,T",
+          "--no-progress"], cwd=tmp_path)
+    starts = json.loads((out / "checkpoint" / "starts.json").read_text())["starts"]
+    # the demonstrations' two starts and the DAgger round's one: all seen in training
+    assert sorted(s[3] for s in starts) == [3 * SEED_STRIDE, 3 * SEED_STRIDE + 1, 5 * SEED_STRIDE]
+    bad = _run([aero, "generate", "--setting", "TidyHouse", "--skills", "pick", "--episodes", "1", "--no-cameras",
+                "--policy", "expert", "--checkpoint", str(trained), "--out", str(tmp_path / "x")], cwd=tmp_path, ok=False)
+    assert bad.returncode != 0 and "the expert policy takes no --checkpoint" in bad.stderr
+    assert not (tmp_path / "x").exists()
