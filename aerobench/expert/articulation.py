@@ -25,6 +25,11 @@ STANDOFF_M = 0.14  # pre-insert: the tool centre point this far out along the ha
 APPROACH_SPEED_MPS = 0.45
 INSERT_SPEED_MPS = 0.05
 AT_HANDLE_M = 0.008
+# The insertion corridor: the tool centre point between the standoff point and the handle, this close to the handle's
+# normal, facing the handle, slow. The expert's own flight stops at the standoff point and inserts from there; a
+# policy it labels (DAgger) may fly on into the corridor, and is told to insert from where it is, not to back out.
+CORRIDOR_M = 0.025
+CORRIDOR_SPEED_MPS = 0.15
 ROUTE_END_M = 0.05  # an approach flown at another heading turns to face the handle this close to its route's end
 PINCH_CONFIRM_STEPS = 3
 # The door and drawer resist with Coulomb friction (7 N / 2.5 N at the handle): the velocity loop must wind its
@@ -164,7 +169,8 @@ class ArticulationExpert(SkillExpert):
         pre_tcp = point + STANDOFF_M * normal
         self.arrived |= last & (torch.linalg.norm(waypoint - state.position, dim=-1) < ROUTE_END_M)
         self.turned |= self.arrived & (wrap_angle(yaw_target - state.yaw).abs() < TURN_TOLERANCE_RAD)
-        self.goto(P.APPROACH, last & self.turned & (torch.linalg.norm(tcp - pre_tcp, dim=-1) < 0.02) & (state.velocity.norm(dim=-1) < 0.05), P.INSERT)
+        at_standoff = last & self.turned & (torch.linalg.norm(tcp - pre_tcp, dim=-1) < 0.02) & (state.velocity.norm(dim=-1) < 0.05)
+        self.goto(P.APPROACH, at_standoff | self._in_corridor(tcp, point, normal, yaw_target, state), P.INSERT)
         self.goto(P.INSERT, torch.linalg.norm(tcp - point, dim=-1) < AT_HANDLE_M, P.PINCH)
         started_drive = self.goto(P.PINCH, pinched & (self.timer >= PINCH_CONFIRM_STEPS), P.DRIVE)
         self.goto(P.DRIVE, goal_reached, P.UNWIND)
@@ -244,6 +250,17 @@ class ArticulationExpert(SkillExpert):
             target, max_speed, yaw_target, gripper, arm_target=arm, yaw_rate_feedforward=feedforward, yaw_gain=yaw_gain,
             velocity_override=(drive | (phase == P.UNWIND), override),
         )
+
+    @staticmethod
+    def _in_corridor(tcp: torch.Tensor, point: torch.Tensor, normal: torch.Tensor, facing: torch.Tensor,
+                     state) -> torch.Tensor:
+        """`(N,)` whether the tool centre point stands in the insertion corridor (CORRIDOR_M), facing the handle."""
+        offset = tcp - point
+        along = (offset * normal).sum(-1)
+        lateral = torch.linalg.norm(offset - along[:, None] * normal, dim=-1)
+        aligned = wrap_angle(facing - state.yaw).abs() < TURN_TOLERANCE_RAD
+        slow = state.velocity.norm(dim=-1) < CORRIDOR_SPEED_MPS
+        return (along > -AT_HANDLE_M) & (along < STANDOFF_M + CORRIDOR_M) & (lateral < CORRIDOR_M) & aligned & slow
 
     def _centring_velocity(self, point: torch.Tensor, facing: torch.Tensor, door_yaw_rate: torch.Tensor, position: torch.Tensor) -> torch.Tensor:
         """Horizontal airframe velocity `(N, 2)` that keeps it where a drone facing the door with its tool centre
