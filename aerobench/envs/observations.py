@@ -32,7 +32,7 @@ use it. Positions in metres, in the env (world) frame unless the name says body:
 | 11-13 | tcp_to_obj_pos | object bottom centre - TCP (zeros without an object) |
 | 14 | heading_error | rad, the skill's goal heading minus the yaw, wrapped to the goal's symmetry: pick: the grasp heading planned at the skill's start (mod pi for boxes, pi/2 for round objects); place, nav: the heading at the skill's start; open / close: facing the handle |
 | 15 | progress | pick: the object's lift above its resting height (m); place: seconds the goal support has carried the object without a break, capped at 1 s (the expert releases at 0.45 s); open / close: articulation progress q_bar; nav: 0 |
-| 16 | is_grasp_confirmed | 1 once both fingers have pinched the target for `GRASP_CONFIRM_STEPS` control steps in a row, else 0 (a tactile signal, delayed so that it reports a grasp, not a closing command); an episode that starts with the object in the jaws (Place) starts confirmed |
+| 16 | is_grasp_confirmed | 1 once both fingers have pinched the target (open / close: the handle, since version 5) for `GRASP_CONFIRM_STEPS` control steps in a row, else 0 (a tactile signal, delayed so that it reports a grasp, not a closing command); an episode that starts with the object in the jaws (Place) starts confirmed |
 | 17-19 | linear_velocity | airframe velocity, m/s |
 | 20-22 | angular_velocity_body | rad/s, body frame |
 | 23-24 | gravity_body_xy | x and y of the unit gravity direction in the body frame (roll and pitch) |
@@ -88,7 +88,8 @@ assert TASK_STATE_DIM == 31
 # set-down time (the place expert releases on it). A version-1 checkpoint is fed Place progress 0 (policies.inputs).
 # 3: `grasp_side_room` added (the pick expert's alignment before descending depends on it; docs/experiments.md).
 # 4: `doorway_ahead`, `doorway_pos` added (a goal in another room: where the opening is; docs/experiments.md).
-TASK_STATE_VERSION = 4
+# 5: `is_grasp_confirmed` reports the handle's pinch in Open / Close (always 0 there before; docs/experiments.md).
+TASK_STATE_VERSION = 5
 FIELD_SINCE_VERSION = {"grasp_side_room": 3, "doorway_ahead": 4, "doorway_pos": 4}  # fields an older layout lacks
 GRASP_CONFIRM_STEPS = 3  # control steps of a continuous pinch before `is_grasp_confirmed` reads 1
 STATE_DIM = sum(n for _, n in STATE_FIELDS)

@@ -93,13 +93,22 @@ class InputSpec:
         return torch.cat(parts, dim=-1)
 
     def _as_trained(self, task_state: torch.Tensor) -> torch.Tensor:
-        """The task state in the meaning the policy was trained on: version 1 read Place `progress` as 0."""
-        if self.task_state_version >= 2 or "progress" not in self.task_fields:
+        """The task state in the meaning the policy was trained on: version 1 read Place `progress` as 0, versions
+        1-4 read Open / Close `is_grasp_confirmed` as 0."""
+        legacy_progress = self.task_state_version < 2 and "progress" in self.task_fields
+        legacy_handle = self.task_state_version < 5 and "is_grasp_confirmed" in self.task_fields
+        if not (legacy_progress or legacy_handle):
             return task_state
-        place = task_state[..., TASK_SLICES["skill"].start + SKILLS.index("place")] > 0.5
-        progress = TASK_SLICES["progress"].start
+        skill = TASK_SLICES["skill"].start
         legacy = task_state.clone()
-        legacy[..., progress] = legacy[..., progress].masked_fill(place, 0.0)
+        if legacy_progress:
+            place = task_state[..., skill + SKILLS.index("place")] > 0.5
+            progress = TASK_SLICES["progress"].start
+            legacy[..., progress] = legacy[..., progress].masked_fill(place, 0.0)
+        if legacy_handle:
+            handle = (task_state[..., skill + SKILLS.index("open")] > 0.5) | (task_state[..., skill + SKILLS.index("close")] > 0.5)
+            confirmed = TASK_SLICES["is_grasp_confirmed"].start
+            legacy[..., confirmed] = legacy[..., confirmed].masked_fill(handle, 0.0)
         return legacy
 
     def stack_episodes(self, frames: torch.Tensor, episode_index: torch.Tensor) -> torch.Tensor:

@@ -171,3 +171,28 @@ def test_the_proprioceptive_state_is_its_documented_fields(platform):
         torch.testing.assert_close(state[:, sl], expected[name], rtol=1e-5, atol=1e-6, msg=name)
     assert float(qd[:, fingers].abs().min()) > 0.1 and float(q[:, fingers].min()) > 0.01
     env.close()
+
+
+def test_open_confirms_the_handle_pinch_as_a_pick_confirms_its_grasp():
+    """Task state version 5: in Open, `is_grasp_confirmed` reads 1 once the fingers have pinched the handle for
+    GRASP_CONFIRM_STEPS control steps in a row (it read 0 throughout before: a policy could not tell the drive's first
+    frames from the insert's)."""
+    import numpy as np
+
+    from aerobench.envs.observations import GRASP_CONFIRM_STEPS
+    from aerobench.rollout.episode import EpisodeList
+    from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+
+    spec = RolloutSpec(setting="PrepareGroceries", skills=("open",), episodes=1, seed=4200, record_cameras=False,
+                       keep_signals=("is_handle_pinched",))
+    sink = EpisodeList()
+    RolloutRunner(spec, sink).run()
+    episode = sink.episodes[0]
+    assert episode.record.outcome == "S"
+    column = field_slices(task_state_fields(with_arm=True))["is_grasp_confirmed"].start
+    confirmed = episode.frames["task_state"][:, column]  # frame t: before step t
+    pinched = episode.signals["is_handle_pinched"].astype(bool)  # after step t
+    streak = np.array([pinched[max(0, t - GRASP_CONFIRM_STEPS + 1): t + 1].all() and t + 1 >= GRASP_CONFIRM_STEPS
+                       for t in range(len(pinched))])
+    assert np.array_equal(confirmed[1:], streak[:-1].astype(np.float32)) and confirmed[0] == 0
+    assert 0 < confirmed.sum() < len(confirmed)  # confirmed while the expert held the handle, not before or after

@@ -56,6 +56,21 @@ def test_a_policy_reads_the_task_state_in_the_version_it_was_trained_on():
         InputSpec(task_state_version=TASK_STATE_VERSION + 1)
 
 
+def test_before_version_5_a_policy_reads_open_and_close_grasp_confirmation_as_0():
+    """Version 5 made `is_grasp_confirmed` report the handle's pinch in Open / Close (always 0 there before): an
+    older policy keeps reading 0 there, and a Pick's confirmation as it was."""
+    fields = field_slices(TASK_STATE_FIELDS)
+    task = torch.zeros(3, TASK_STATE_DIM)
+    for row, skill in enumerate(("open", "close", "pick")):
+        task[row, fields["skill"].start + SKILLS.index(skill)] = 1.0
+    task[:, fields["is_grasp_confirmed"]] = 1.0
+    state = torch.zeros(3, STATE_DIM)
+    read = lambda version: InputSpec(task_fields=("is_grasp_confirmed",), task_state_version=version).frame(state, task)  # noqa: E731
+    assert read(5)[:, 0].tolist() == [1.0, 1.0, 1.0]
+    assert read(4)[:, 0].tolist() == read(2)[:, 0].tolist() == [0.0, 0.0, 1.0]
+    assert task[:, fields["is_grasp_confirmed"]].tolist() == [[1.0]] * 3  # the caller's tensor is untouched
+
+
 def test_a_policy_of_an_older_layout_reads_its_fields_by_name_from_todays_task_state():
     """Version 3 added `grasp_side_room`, version 4 the doorway, each before the arm's fields: a version-2 or -3 policy
     gets the same inputs from a vector of its version (its dataset) and from today's (the env it acts in)."""
@@ -72,6 +87,7 @@ def test_a_policy_of_an_older_layout_reads_its_fields_by_name_from_todays_task_s
             assert old_width == widths[(with_arm, version)]
             now = torch.randn(3, width)
             slices = field_slices(today)
+            now[:, slices["skill"]] = torch.nn.functional.one_hot(torch.tensor(SKILLS.index("pick")), len(SKILLS)).float()
             keep = [i for name, _ in old for i in range(slices[name].start, slices[name].stop)]
             recorded = now[:, keep]  # the same state, recorded in the older version
             assert torch.equal(task_state_in_layout(now, with_arm, old_width), recorded)  # what an older ACT is fed

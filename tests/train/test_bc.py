@@ -80,7 +80,7 @@ def test_bc_trains_on_successful_episodes_only(state_dataset, trained):
     assert config["algorithm"] == "bc" and config["platform"] == "gripper"
     assert config["data"]["episodes"] == len(successes)
     assert config["data"]["frames"] == sum(r["steps"] for r in successes) < config["data"]["total_frames"]
-    # the default inputs: the whole 31-D task state (version 4) of the last 3 frames, nothing of the proprio state; binary gripper
+    # the default inputs: the whole 31-D task state (today's version) of the last 3 frames, nothing of the proprio state; binary gripper
     assert config["model"]["state_dim"] == 3 * 31 and config["model"]["action_dim"] == 5
     assert config["model"]["inputs"]["history"] == 3
     assert config["model"]["inputs"]["state_fields"] == [] and len(config["model"]["inputs"]["task_fields"]) == 14

@@ -18,7 +18,7 @@ from mani_skill.utils.registration import register_env
 from ..checks import FailureCause, Phase, consecutive
 from ..control.arm import arm_point_positions_body
 from ..geometry import body_points_to_world
-from ..observations import wrap_angle
+from ..observations import GRASP_CONFIRM_STEPS, wrap_angle
 from ..scenes import articulated
 from ..signals import HELD_FORCE_N
 from ..tasks import instruction
@@ -78,6 +78,7 @@ class ArticulationEvaluator(SkillEvaluator):
         self.phase = self.zeros(torch.long)
         self.phase_steps = self.zeros(torch.long)
         self.slip_steps = self.zeros(torch.long)
+        self.pinch_steps = self.zeros(torch.long)  # control steps of a continuous pinch (the tactile confirmation)
         self.contact_seen = self.zeros(torch.bool)
         self.min_clearance = torch.full((self.n,), math.inf, device=self.device)
         rest = env.platform.arm.working_pose_rad if env.platform.arm else ()
@@ -125,6 +126,7 @@ class ArticulationEvaluator(SkillEvaluator):
         self.phase[env_idx] = int(Phase.APPROACH)
         self.phase_steps[env_idx] = 0
         self.slip_steps[env_idx] = 0
+        self.pinch_steps[env_idx] = 0
         self.contact_seen[env_idx] = False
         self.min_clearance[env_idx] = math.inf
 
@@ -157,6 +159,7 @@ class ArticulationEvaluator(SkillEvaluator):
         self.contact_seen = self.keep(mine, self.contact_seen | (ctx.airframe_force > AIRFRAME_CONTACT_N), self.contact_seen)
         self.min_clearance = self.keep(mine, torch.minimum(self.min_clearance, self._robot_clearance(ctx)), self.min_clearance)
         self.slip_steps = self.keep(mine, consecutive(self.slip_steps, ~pinched), self.slip_steps)
+        self.pinch_steps = self.keep(mine, consecutive(self.pinch_steps, pinched), self.pinch_steps)
         phase, steps = advance_phase(
             self.phase, self.phase_steps, at_handle, pinched, self.slip_steps, goal, released, retracted, stable
         )
@@ -191,6 +194,9 @@ class ArticulationEvaluator(SkillEvaluator):
             origin=ctx.tcp,
             heading_error=wrap_angle(facing - ctx.state.yaw),
             progress=self.progress(),
+            # the fingers' pinch on the handle, confirmed as an object's grasp is (task state version 5): without it a
+            # policy cannot tell the moment it has the handle (the drive begins) from the insert before it
+            grasp_confirmed=self.pinch_steps >= GRASP_CONFIRM_STEPS,
         )
 
     def instruction(self, env):

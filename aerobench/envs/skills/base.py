@@ -515,6 +515,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         goal, goal_point = torch.zeros(n, 3, device=self.device), torch.zeros(n, 3, device=self.device)
         heading_error, progress = torch.zeros(n, device=self.device), torch.zeros(n, device=self.device)
         skill = torch.zeros(n, dtype=torch.long, device=self.device)
+        confirmed = self._grasp_streak >= GRASP_CONFIRM_STEPS  # the target object's; a handle's from its evaluator
         for evaluator, mine in self.evaluator_masks(active):  # every evaluator's features, kept where it is active
             mine = torch.ones_like(active, dtype=torch.bool) if mine is None else mine
             f = evaluator.goal_features(ctx)
@@ -522,6 +523,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             goal_point = torch.where(mine[:, None], f.goal_point, goal_point)
             heading_error = torch.where(mine, f.heading_error, heading_error)
             progress = torch.where(mine, f.progress, progress)
+            if f.grasp_confirmed is not None:
+                confirmed = torch.where(mine, f.grasp_confirmed, confirmed)
             skill = torch.where(mine, SKILLS.index(evaluator.skill), skill)
         state = ctx.state
         zeros = torch.zeros(n, 3, device=self.device)
@@ -533,7 +536,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             ctx.object_pose.p - ctx.tcp if ctx.object_pose is not None else zeros,
             heading_error[:, None],
             progress[:, None],
-            (self._grasp_streak >= GRASP_CONFIRM_STEPS).float()[:, None],
+            confirmed.float()[:, None],
             state.velocity,
             state.angular_velocity_body,
             -state.rotation[:, 2, :2],  # gravity (0, 0, -1) in the body frame: -R^T e_z, its x and y

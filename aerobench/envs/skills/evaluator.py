@@ -24,6 +24,9 @@ class GoalFeatures:
     origin: torch.Tensor  # (N, 3) the point it is for (TCP, object bottom centre, airframe centre)
     heading_error: torch.Tensor  # (N,) rad, wrapped to the goal heading's symmetry
     progress: torch.Tensor  # (N,)
+    # (N,) bool: the tactile grasp confirmation where the skill grasps something other than the target object (the
+    # handle of Open / Close); None: the target object's (`is_grasp_confirmed`)
+    grasp_confirmed: torch.Tensor | None = None
 
     @property
     def goal_pos(self) -> torch.Tensor:
