@@ -72,17 +72,14 @@ def train(name: str, dataset: Path, out: Path, steps: int, seed: int) -> tuple[P
 def score(checkpoint: Path, setting: str, skill: str, objects: tuple[str, ...] | None, episodes: int, seed: int,
           workers: int, out: Path) -> dict:
     from aerobench.eval.evaluate import EvalConfig, evaluate
+    from aerobench.eval.results import over_all_cells
 
     results = evaluate(EvalConfig(policy="bc", setting=setting, skills=(skill,), objects=objects,
                                   episodes_per_object=episodes, checkpoint=str(checkpoint), seed=seed,
                                   workers=workers), out)
-    n = sum(c["n"] for c in results["cells"])
-    k = sum(c["successes"] for c in results["cells"])
-    modes: dict[str, int] = {}
-    for c in results["cells"]:
-        for mode, count in c["modes"].items():
-            modes[mode] = modes.get(mode, 0) + count
-    return {"successes": k, "n": n, "modes": modes, "seen_in_training": results["provenance"]["seen_in_training"]}
+    pooled = over_all_cells(results)
+    return {"successes": pooled["successes"], "n": pooled["n"], "modes": pooled["modes"],
+            "seen_in_training": results["provenance"]["seen_in_training"]}
 
 
 def generate(args, objects: tuple[str, ...] | None, root: Path) -> Path:

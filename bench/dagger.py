@@ -159,21 +159,14 @@ def dataset_size(folder: Path) -> tuple[int, int]:
 
 def summary_row(name: str, data: Path, results: dict, seed: int) -> dict:
     """One table row: the data a policy trained on and its held-out success, failure modes and training overlap."""
-    from aerobench.eval.stats import wilson_interval
+    from aerobench.eval.results import failure_modes, over_all_cells
 
-    n = sum(c["n"] for c in results["cells"])
-    k = sum(c["successes"] for c in results["cells"])
-    modes: dict[str, int] = {}
-    for cell in results["cells"]:
-        for mode, count in cell["modes"].items():
-            modes[mode] = modes.get(mode, 0) + count
+    pooled = over_all_cells(results)
     episodes, frames = dataset_size(data)
     seen = results["provenance"].get("seen_in_training") or {}
     return {"policy": name, "data": str(data), "episodes": episodes, "frames": frames, "eval_seed": seed,
-            "successes": k, "n": n, "wilson95": list(wilson_interval(k, n)),
-            "seen_in_training": seen.get("episodes"),
-            "failure_modes": dict(sorted(((m, c) for m, c in modes.items() if not m.startswith("Successful")),
-                                         key=lambda mc: -mc[1]))}
+            "successes": pooled["successes"], "n": pooled["n"], "wilson95": pooled["wilson95"],
+            "seen_in_training": seen.get("episodes"), "failure_modes": failure_modes(pooled["modes"])}
 
 
 def run(b: Budget, out: Path) -> dict:

@@ -25,7 +25,7 @@ from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records, run_record_files, unique_records
 from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes
 from .held_out import seen_in_training, training_starts
-from .results import summarize, write_results
+from .results import failure_modes, summarize, write_results
 
 RESULTS_FILE = "results.json"
 
@@ -266,7 +266,7 @@ def format_table(results: dict) -> str:
     header = f"{'skill':<8} {'object':<17} {'success %':>13} {'wilson95 %':>13} {'n':>4}  leading failure mode"
     lines.append(header)
     for c in results["cells"]:
-        failures = {m: k for m, k in c["modes"].items() if not m.startswith("Successful")}
+        failures = failure_modes(c["modes"])
         leading = max(failures, key=failures.get) if failures else "-"
         lo, hi = c["wilson95"]
         lines.append(f"{c['skill']:<8} {c['object'] or '-':<17} {100 * c['success_rate']:>6.1f} ± {100 * c['se']:<4.1f} "

@@ -29,6 +29,20 @@ def rate_fields(successes: int, n: int) -> dict:
             "se": standard_error(successes, n), "wilson95": [lo, hi]}
 
 
+def failure_modes(modes: Mapping[str, int]) -> dict[str, int]:
+    """The counts of the modes that are not a success (every success mode is named "Successful ..."), most
+    frequent first."""
+    return dict(sorted(((m, k) for m, k in modes.items() if not m.startswith("Successful")), key=lambda mk: -mk[1]))
+
+
+def over_all_cells(results: Mapping) -> dict:
+    """One results file as one number: successes and n summed over its cells, their rate statistics and mode counts
+    (for a one-skill, one-object comparison; the table's Mean S.R. is the mean over cells instead)."""
+    cells = results["cells"]
+    modes = sum((Counter(c["modes"]) for c in cells), Counter())
+    return {**rate_fields(sum(c["successes"] for c in cells), sum(c["n"] for c in cells)), "modes": dict(modes)}
+
+
 def _cell(rows: list[Mapping]) -> dict:
     executed = [r for r in rows if r["outcome"] != "I"]
     return {

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from aerobench.eval.evaluate import EvalConfig, evaluate
-from aerobench.eval.results import RESULTS_VERSION, load_results
+from aerobench.eval.results import RESULTS_VERSION, failure_modes, load_results, over_all_cells
 from aerobench.rollout.records import RecordSink, read_records
 
 CLI = [sys.executable, "-m", "aerobench.cli"]
@@ -41,6 +41,15 @@ def test_results_cover_the_grid(tiny_eval):
     assert results["provenance"]["command"] == "test" and results["provenance"]["episodes_per_object"] == 2
     rows = read_records(out / "records.jsonl")
     assert sorted(r["episode_index"] for r in rows) == list(range(8))
+
+
+def test_one_number_over_all_cells_sums_their_counts_and_modes(tiny_eval):
+    _, results = tiny_eval
+    pooled = over_all_cells(results)
+    assert pooled["n"] == sum(c["n"] for c in results["cells"]) and pooled["successes"] == 0
+    assert sum(pooled["modes"].values()) == pooled["n"] and pooled["wilson95"][0] == 0.0 < pooled["wilson95"][1]
+    modes = {"Successful opening": 4, "Handle-slip failure": 20, "Handle-pinch failure": 23}
+    assert list(failure_modes(modes).items()) == [("Handle-pinch failure", 23), ("Handle-slip failure", 20)]
 
 
 def test_worker_processes_record_the_same_episodes_as_one_process(tiny_eval, tmp_path):
