@@ -21,7 +21,7 @@ demo: setup
 
 test: setup
 	@bash scripts/setup_browser.sh
-	$(PY) -m pytest -n 2 -q --durations=25 tests
+	$(PY) -m pytest -n 2 --dist loadgroup -q --durations=25 tests
 
 bench: setup
 	@for f in bench/*.py; do echo "== $$f"; $(PY) $$f || exit 1; done

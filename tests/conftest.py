@@ -42,8 +42,10 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="module")
 def aot_cache(tmp_path_factory):
-    """One ahead-of-time package cache for this test run (never the user's), shared by pytest-xdist's workers so a
-    package is built once per run."""
+    """One ahead-of-time package cache for this test run (never the user's), shared by pytest-xdist's workers. The
+    modules whose kernels are the env's own (the flight step, signals, evaluators, expert steps) are marked
+    `xdist_group("aot_packages")`: `make test` runs with `--dist loadgroup`, so one worker builds each such package
+    once and the later tests load it (two workers built the same packages side by side: 15-30 s each)."""
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
     base = tmp_path_factory.getbasetemp()
     root = base.parent / f"aerobench_cache_{run}" if run else base / "aerobench_cache"

@@ -1,4 +1,5 @@
-"""`aerobench` from the shell: every command's help, `fly`'s one-line errors, JSON output, video and plot files."""
+"""`aerobench` from the shell: every command's help, `fly`'s one-line errors, JSON output, video and plot files.
+The error checks run `main` in this process (tests/cli_here.py); `fly` and `render` run from the shell."""
 
 import json
 import os
@@ -6,6 +7,8 @@ import subprocess
 import sys
 
 import pytest
+
+from tests.cli_here import aerobench_here
 
 CLI = [sys.executable, "-m", "aerobench.cli"]
 
@@ -56,7 +59,7 @@ def test_every_command_has_a_help_page(capsys):
     ],
 )
 def test_bad_input_is_one_line(args, message):
-    r = _run("fly", *args)
+    r = aerobench_here("fly", *args)
     assert r.returncode == 2
     assert r.stderr.strip() == message
     assert "Traceback" not in r.stderr
@@ -90,5 +93,5 @@ def test_render_writes_the_views_picture(tmp_path):
     ],
 )
 def test_render_bad_names(tmp_path, args, message):
-    r = _run("render", *args, "--out", str(tmp_path / "x.png"))
+    r = aerobench_here("render", *args, "--out", str(tmp_path / "x.png"))
     assert r.returncode == 2 and r.stderr.strip() == message

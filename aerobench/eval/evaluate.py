@@ -23,7 +23,7 @@ from ..envs.tasks import get_setting
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records, run_record_files, unique_records
-from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes
+from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes, shard_plans
 from .held_out import seen_in_training, training_starts
 from .results import failure_modes, summarize, write_results
 
@@ -179,11 +179,17 @@ def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
     k = config.workers
     out.mkdir(parents=True, exist_ok=True)
     folders = [out / "shards" / f"{i}-of-{k}" for i in range(k)]
-    with ProcessPoolExecutor(k, mp_context=multiprocessing.get_context("spawn"), initializer=exit_with_parent,
-                             initargs=(os.getpid(),)) as pool:
-        futures = {pool.submit(_run_shard_in_worker, config, folder, (i, k)): i for i, folder in enumerate(folders)}
-        for future in as_completed(futures):
-            future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here
+    # a worker starts cold (its imports and env: 10-15 s on a 2-core machine): none for a shard with nothing left
+    spec = config.rollout_spec(record_cameras=config.needs_images())
+    recorded = {int(r["episode_index"]) for f in run_record_files(out, _run_spec(config, spec)) for r in read_records(f)}
+    pending = [i for i in range(k) if any(plan.index not in recorded for plan in
+                                          shard_plans(config.rollout_spec(record_cameras=spec.record_cameras, shard=(i, k))))]
+    if pending:
+        with ProcessPoolExecutor(len(pending), mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=exit_with_parent, initargs=(os.getpid(),)) as pool:
+            futures = {pool.submit(_run_shard_in_worker, config, folders[i], (i, k)): i for i in pending}
+            for future in as_completed(futures):
+                future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here
     return [folder / "records.jsonl" for folder in folders]
 
 

@@ -60,6 +60,28 @@ def _rect_distance_2d(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(-1), 0)
 
 
+def _cells_near_boxes(xs: np.ndarray, ys: np.ndarray, boxes: np.ndarray, offsets: np.ndarray, margin: float) -> np.ndarray:
+    """(len(xs), len(ys)) bool: the grid cells c for which some offset o of `offsets` (O, 2) puts c + o closer than
+    `margin` to some box (`_rect_distance_2d`). A box is tested only against the cells its bounding circle, widened
+    by `margin` and the offsets' spread, can reach: the same distances as testing every cell against every box, in a
+    fraction of the time (a house's boxes each lie near a few per cent of its cells; testing them all cost the
+    LongHorizonRearrangement nav planner 3-4 s per plan)."""
+    blocked = np.zeros((len(xs), len(ys)), dtype=bool)
+    low, high = offsets.min(0), offsets.max(0)
+    for box in boxes:
+        reach = math.hypot(box[3], box[4]) + margin + CELL_M  # no point farther than this from the centre is near
+        i0, i1 = np.searchsorted(xs, box[0] - high[0] - reach), np.searchsorted(xs, box[0] - low[0] + reach, "right")
+        j0, j1 = np.searchsorted(ys, box[1] - high[1] - reach), np.searchsorted(ys, box[1] - low[1] + reach, "right")
+        if i0 >= i1 or j0 >= j1:
+            continue
+        gx, gy = np.meshgrid(xs[i0:i1], ys[j0:j1], indexing="ij")
+        cells = np.stack([gx.ravel(), gy.ravel()], -1)
+        points = (cells[None] + offsets[:, None]).reshape(-1, 2)
+        near = (_rect_distance_2d(points, box[None]).reshape(len(offsets), -1) < margin).any(0)
+        blocked[i0:i1, j0:j1] |= near.reshape(i1 - i0, j1 - j0)
+    return blocked
+
+
 class RoutePlanner:
     """Plans for one env's layout. `proxy` are the drone's body points (level, any heading is covered by using the
     points' horizontal radius), `below` how far the drone's hanging parts (gripper, held object) reach under the
@@ -133,13 +155,12 @@ class RoutePlanner:
         cells = np.stack([gx.ravel(), gy.ravel()], -1)
         lo_z, hi_z = z - self.below, z + SLAB_ABOVE_M
         in_slab = (self.boxes[:, 2] + self.boxes[:, 5] > lo_z) & (self.boxes[:, 2] - self.boxes[:, 5] < hi_z)
-        blocked = np.zeros(len(cells), dtype=bool)
-        if in_slab.any() and self.footprint is not None:
+        if self.footprint is not None:
             # the real footprint at the held heading, as its horizontal outline (the slab covers its heights)
-            for dx, dy in np.unique(np.round(self.footprint[:, :2], 4), axis=0):
-                blocked |= _rect_distance_2d(cells + np.array([dx, dy]), self.boxes[in_slab]).min(-1) < CLEARANCE_M
-        elif in_slab.any():
-            blocked = _rect_distance_2d(cells, self.boxes[in_slab]).min(-1) < self.reach + CLEARANCE_M
+            offsets, margin = np.unique(np.round(self.footprint[:, :2], 4), axis=0), CLEARANCE_M
+        else:
+            offsets, margin = np.zeros((1, 2)), self.reach + CLEARANCE_M
+        blocked = _cells_near_boxes(xs, ys, self.boxes[in_slab], offsets, margin).ravel()
         # the drone stays WORKSPACE_MARGIN_M inside the workspace: with a known heading its footprint's own extent
         # each way (an arm reaching 0.47 m ahead is no reason to keep 0.52 m from a wall beside it), else its reach
         if self.footprint is not None:

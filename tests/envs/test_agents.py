@@ -155,6 +155,7 @@ def test_the_body_controller_is_the_only_one_between_physics_steps(env):
     assert FingerController.before_simulation_step is not PDJointPosMimicController.before_simulation_step
 
 
+@pytest.mark.xdist_group("aot_packages")  # the flight step's packages: built once, by tests/envs/control/test_fused.py
 @pytest.mark.parametrize("platform", ["gripper", "arm"])
 def test_the_controller_state_handed_out_and_taken_in_is_a_copy(platform, monkeypatch, aot_cache):
     """The compiled 240 Hz loop updates the controller memory's integrator and heading in place: a state read from

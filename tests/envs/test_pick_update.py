@@ -10,7 +10,7 @@ from aerobench.envs.checks import SafetyLimits
 from aerobench.envs.skills.pick import PICK_HOLD_STEPS, PICK_LIFT_M, PickUpdate, _flat_pick_update, pick_update
 from tests.envs.kernel_checks import assert_compiled_is_eager
 
-pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+pytestmark = [pytest.mark.usefixtures("aot_cache"), pytest.mark.xdist_group("aot_packages")]  # packages built here go to this run's cache
 
 LIMITS = SafetyLimits()
 

@@ -11,7 +11,7 @@ from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
 from tests.envs.kernel_checks import assert_compiled_is_eager
 
-pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+pytestmark = [pytest.mark.usefixtures("aot_cache"), pytest.mark.xdist_group("aot_packages")]  # packages built here go to this run's cache
 
 MINE = 15  # `place_update`'s input position of the mask of envs where the place is active
 TRACKERS = 5  # its first outputs: the trackers

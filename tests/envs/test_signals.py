@@ -13,7 +13,7 @@ from aerobench.envs.signals import BOXES_INPUT, FlightSignals, SharedSignals, si
 from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
 
-pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+pytestmark = [pytest.mark.usefixtures("aot_cache"), pytest.mark.xdist_group("aot_packages")]  # packages built here go to this run's cache
 
 
 def _held_step(env_id: str = "AeroPick-v1", **kwargs):

@@ -12,7 +12,7 @@ import aerobench.envs  # noqa: F401
 from aerobench.envs.checks import FailureCause, verdict
 from tests.envs.kernel_checks import assert_compiled_is_eager
 
-pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+pytestmark = [pytest.mark.usefixtures("aot_cache"), pytest.mark.xdist_group("aot_packages")]  # packages built here go to this run's cache
 
 CAUSES = (int(FailureCause.COLLISION), int(FailureCause.OBJECT_DROP), int(FailureCause.TILT), int(FailureCause.LOW))
 

@@ -1,8 +1,6 @@
 """`aerobench compare`: paired tables, the exact McNemar p-value, Newcombe's interval, verdicts, refusals."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -10,9 +8,9 @@ import pytest
 from aerobench.eval.compare import compare, format_comparison, load_run
 from aerobench.eval.results import summarize, write_results
 from aerobench.eval.stats import mcnemar_sample_size, paired_difference_interval
+from tests.cli_here import aerobench_here
 
 ROOT = Path(__file__).resolve().parents[2]
-CLI = [sys.executable, "-m", "aerobench.cli"]
 
 
 def _record(index: int, outcome: str, policy: str, seed_base: int = 4200, skill: str = "pick",
@@ -81,8 +79,7 @@ def test_different_starts_are_refused_in_one_line(tmp_path):
         compare(tmp_path / "a.json", tmp_path / "b.json")
     with pytest.raises(ValueError, match="different episode plans"):
         compare(tmp_path / "a.json", tmp_path / "c.json")
-    r = subprocess.run(CLI + ["compare", str(tmp_path / "a.json"), str(tmp_path / "b.json")], capture_output=True,
-                       text=True, timeout=120)
+    r = aerobench_here("compare", str(tmp_path / "a.json"), str(tmp_path / "b.json"))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "do not share their starts" in r.stderr
 
 
@@ -103,9 +100,8 @@ def test_old_results_are_paired_through_the_records_beside_them(tmp_path):
 
 def test_compare_two_committed_results_prints_a_verdict():
     results = ROOT / "leaderboards" / "results"
-    r = subprocess.run(CLI + ["compare", str(results / "PackageDelivery_bc_skills.json"),
-                              str(results / "PackageDelivery_expert_skills.json")],
-                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    r = aerobench_here("compare", str(results / "PackageDelivery_bc_skills.json"),
+                       str(results / "PackageDelivery_expert_skills.json"))
     assert r.returncode == 0, r.stderr
     overall = next(line for line in r.stdout.splitlines() if line.startswith("all "))
     assert " 40 " in overall and ("underpowered" in overall or "no detectable difference" in overall

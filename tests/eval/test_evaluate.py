@@ -1,7 +1,7 @@
 """`aerobench eval`: records + results on a tiny grid, resume without loss or duplication, bad input, summarize."""
 
+import concurrent.futures
 import json
-import os
 import subprocess
 import sys
 import time
@@ -12,14 +12,16 @@ import pytest
 from aerobench.eval.evaluate import EvalConfig, evaluate
 from aerobench.eval.results import RESULTS_VERSION, failure_modes, load_results, over_all_cells
 from aerobench.rollout.records import RecordSink, read_records
+from tests.cli_here import aerobench_here
 
-CLI = [sys.executable, "-m", "aerobench.cli"]
-ENV = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
 TINY = dict(policy="random", setting="TidyHouse", skills=("pick", "place"), objects=("sugar_box", "bowl"), episodes_per_object=2)
 
 
-def _cli(*args: str, timeout: int = 600) -> subprocess.CompletedProcess:
-    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout, env=ENV)
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return aerobench_here(*args)  # in this process: the imports are loaded (tests/cli_here.py)
+
+
+pytestmark = pytest.mark.xdist_group("tiny_eval")  # the module's tiny evaluation runs once, on one worker
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +54,11 @@ def test_one_number_over_all_cells_sums_their_counts_and_modes(tiny_eval):
     assert list(failure_modes(modes).items()) == [("Handle-pinch failure", 23), ("Handle-slip failure", 20)]
 
 
-def test_worker_processes_record_the_same_episodes_as_one_process(tiny_eval, tmp_path):
+def _no_worker_processes(*args, **kwargs):
+    raise AssertionError("a worker process was started for shards with nothing left to run")
+
+
+def test_worker_processes_record_the_same_episodes_as_one_process(tiny_eval, tmp_path, monkeypatch):
     """`workers=2` runs the plan's two shards in two processes, each into its own record file; the results are
     those of the serial run, episode for episode (a random policy is seeded per episode)."""
     out, serial = tiny_eval
@@ -69,8 +75,9 @@ def test_worker_processes_record_the_same_episodes_as_one_process(tiny_eval, tmp
     parallel = sorted(outcome(r) for rows in shards for r in rows)
     assert parallel == sorted(outcome(r) for r in read_records(out / "records.jsonl"))
     assert results["cells"] == serial["cells"]
-    # rerunning the command finds every shard complete and runs nothing
+    # rerunning the command finds every shard complete and runs nothing: not even a worker process starts
     before = [(tmp_path / "eval" / f).read_text() for f in files]
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", _no_worker_processes)
     evaluate(EvalConfig(**TINY, workers=2), tmp_path / "eval", command="test")
     assert [(tmp_path / "eval" / f).read_text() for f in files] == before
     with pytest.raises(ValueError, match="--workers must be a positive integer"):
@@ -92,7 +99,7 @@ def test_resume_after_a_torn_write_loses_and_duplicates_nothing(tiny_eval, tmp_p
     assert again["cells"] == results["cells"]
 
 
-def test_resume_under_another_shard_layout_runs_and_counts_each_episode_once(tiny_eval, tmp_path):
+def test_resume_under_another_shard_layout_runs_and_counts_each_episode_once(tiny_eval, tmp_path, monkeypatch):
     """A run begun with interleaved shards (even / odd indices; an older layout) and resumed with contiguous blocks,
     then with four workers: no episode runs twice and the results count each once."""
     out, serial = tiny_eval
@@ -108,6 +115,7 @@ def test_resume_under_another_shard_layout_runs_and_counts_each_episode_once(tin
     recorded = [r["episode_index"] for f in sorted(resumed.glob("shards/*/records.jsonl")) for r in read_records(f)]
     assert sorted(recorded) == list(range(8))  # only 5 and 7 ran
     assert again["cells"] == serial["cells"]
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", _no_worker_processes)
     evaluate(EvalConfig(**TINY, workers=4), resumed, command="test")  # another worker count: nothing to run
     assert sorted(r["episode_index"] for f in resumed.glob("shards/*/records.jsonl") for r in read_records(f)) == list(range(8))
     other = resumed / "shards" / "9-of-9"

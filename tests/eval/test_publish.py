@@ -1,7 +1,5 @@
 """`aerobench publish`: a row's results and the videos of its own starts into a leaderboard folder."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -9,8 +7,7 @@ import pytest
 from aerobench.eval.leaderboard import build_leaderboard
 from aerobench.eval.publish import publish
 from aerobench.eval.results import load_results, summarize, write_results
-
-CLI = [sys.executable, "-m", "aerobench.cli"]
+from tests.cli_here import aerobench_here
 
 
 def _eval_dir(folder: Path, outcomes: list[str], videos: tuple[int, ...] = (), seed: int = 4200,
@@ -64,9 +61,7 @@ def test_videos_of_other_starts_or_another_policy_are_refused(tmp_path, case, ma
 
 def test_the_cli_publishes_and_errors_in_one_line(tmp_path):
     row = _eval_dir(tmp_path / "row", ["S", "S"], videos=(0,))
-    r = subprocess.run(CLI + ["publish", str(row), "--to", str(tmp_path / "x.json")], capture_output=True, text=True,
-                       timeout=120)
+    r = aerobench_here("publish", str(row), "--to", str(tmp_path / "x.json"))
     assert r.returncode == 0 and "1 videos" in r.stdout, r.stderr
-    r = subprocess.run(CLI + ["publish", str(row), "--to", str(tmp_path / "x.txt")], capture_output=True, text=True,
-                       timeout=120)
+    r = aerobench_here("publish", str(row), "--to", str(tmp_path / "x.txt"))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "must name a .json" in r.stderr

@@ -14,7 +14,7 @@ from aerobench.policies import make_policy
 from tests.envs.host_sync import NoHostSync
 from tests.envs.kernel_checks import assert_compiled_is_eager
 
-pytestmark = pytest.mark.usefixtures("aot_cache")  # packages built here go to this run's cache
+pytestmark = [pytest.mark.usefixtures("aot_cache"), pytest.mark.xdist_group("aot_packages")]  # packages built here go to this run's cache
 
 
 def _expert_in_phase(platform: str, phase, seed: int = 0, steps: int = 300, env_id: str = "AeroPick-v1"):

@@ -10,7 +10,7 @@ import torch
 
 from aerobench.envs.geometry import drone_proxy_points_body
 from aerobench.envs.platforms import GRIPPER_PLATFORM
-from aerobench.expert.planner import CLEARANCE_M, RoutePlanner
+from aerobench.expert.planner import CLEARANCE_M, SLAB_ABOVE_M, RoutePlanner, _cells_near_boxes, _rect_distance_2d
 
 ROTORS = GRIPPER_PLATFORM.rotors
 REACH = ROTORS.arm_m * math.sqrt(2) + ROTORS.disk_radius_m  # the any-heading disk
@@ -88,6 +88,27 @@ def test_box_prefilter_matches_the_full_check(heading):
     results = [filtered.segment_free(a, b) for a, b in segments]
     assert results == [unfiltered.segment_free(a, b) for a, b in segments]
     assert any(results) and not all(results)
+
+
+@pytest.mark.parametrize("heading", [None, 0.0, 0.7])
+def test_the_occupancy_grid_tests_each_box_near_its_cells_and_blocks_what_testing_every_pair_blocks(heading):
+    rng = np.random.default_rng(1)
+    boxes = np.concatenate([rng.uniform(-3.2, 3.2, (15, 3)) * [1, 1, 0.5] + [0, 0, 1.2],
+                            rng.uniform(0.02, 0.8, (15, 3)), rng.uniform(-3, 3, (15, 1))], -1)
+    p = planner(list(boxes), heading)
+    offsets = np.zeros((1, 2)) if heading is None else np.unique(np.round(p.footprint[:, :2], 4), axis=0)
+    margin = REACH + CLEARANCE_M if heading is None else CLEARANCE_M
+    for z in (1.3, 2.1):
+        xs, ys, blocked = p._occupancy(z)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        cells = np.stack([gx.ravel(), gy.ravel()], -1)
+        in_slab = (boxes[:, 2] + boxes[:, 5] > z - BELOW) & (boxes[:, 2] - boxes[:, 5] < z + SLAB_ABOVE_M)
+        every_pair = np.zeros(len(cells), dtype=bool)
+        for offset in offsets:
+            every_pair |= _rect_distance_2d(cells + offset, boxes[in_slab]).min(-1) < margin
+        inside = _cells_near_boxes(xs, ys, boxes[in_slab], offsets, margin).ravel()
+        assert np.array_equal(inside, every_pair) and 0.05 < every_pair.mean() < 0.95
+        assert np.array_equal(blocked.ravel() & ~every_pair, blocked.ravel() & ~inside)  # the rest: workspace edge
 
 
 def test_a_transport_whose_goal_is_blocked_for_what_hangs_below_ends_a_little_higher():

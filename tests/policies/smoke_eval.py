@@ -1,22 +1,22 @@
 """The check every LeRobot-policy test ends with: `aerobench eval` on a freshly trained checkpoint, for two short
-Pick episodes, writes results and records that count every episode with the checkpoint's provenance."""
+Pick episodes, writes results and records that count every episode with the checkpoint's provenance. The command
+runs in the test's process (tests/cli_here.py), in `cwd`."""
 
+import contextlib
 import json
-import subprocess
-import sys
-from collections.abc import Callable
 from pathlib import Path
 
-BIN = Path(sys.executable).parent
+from tests.cli_here import aerobench_here
 
 
-def eval_two_short_picks(run: Callable[[list[str], Path], subprocess.CompletedProcess], policy: str,
-                         train_dir: Path, label: str, cwd: Path) -> dict:
+def eval_two_short_picks(policy: str, train_dir: Path, label: str, cwd: Path) -> dict:
     """Scores `train_dir` with `aerobench eval --policy <policy>`, asserts on what it wrote, returns results.json."""
     out = cwd / "eval"
-    proc = run([str(BIN / "aerobench"), "eval", "--policy", policy, "--checkpoint", str(train_dir),
-                "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can",
-                "--episodes-per-object", "2", "--max-steps", "8", "--label", label, "--out", str(out)], cwd)
+    with contextlib.chdir(cwd):
+        proc = aerobench_here("eval", "--policy", policy, "--checkpoint", str(train_dir), "--setting", "TidyHouse",
+                              "--skills", "pick", "--objects", "master_chef_can", "--episodes-per-object", "2",
+                              "--max-steps", "8", "--label", label, "--out", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
     assert label in proc.stdout
     results = json.loads((out / "results.json").read_text())
     assert results["policy"] == policy and results["label"] == label

@@ -11,16 +11,13 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli_here import aerobench_here
+
 ray = pytest.importorskip("ray")  # a pinned dependency: set-up installs it, so this only guards a broken venv
 
 CLI = [sys.executable, "-m", "aerobench.cli"]
 ENV = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1", PYTHONUNBUFFERED="1")
 NAV = ["generate", "--setting", "TidyHouse", "--skills", "nav", "--part-size", "1", "--keep", "all", "--no-cameras"]
-
-
-def _generate(out: Path, episodes: int, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run(CLI + NAV + ["--episodes", str(episodes), "--out", str(out), *extra], capture_output=True,
-                          text=True, timeout=900, env=ENV)
 
 
 def _records(out: Path) -> list[dict]:
@@ -41,37 +38,31 @@ def _episode_lengths(root: Path) -> list[int]:
     return [int(n) for n in ds.meta.episodes["length"]]
 
 
-def test_generate_on_ray_writes_the_episodes_of_one_process(tmp_path):
+def test_generate_on_ray_with_a_killed_worker_writes_the_episodes_of_one_process(tmp_path):
+    """Two Ray shards of two episodes each; one worker is killed once a part is committed. Ray retries its shard, which
+    resumes from the committed parts: every planned episode once, and the same records and frames as one process."""
     serial, on_ray = tmp_path / "serial", tmp_path / "ray"
-    r = _generate(serial, 4)
+    r = aerobench_here(*NAV, "--episodes", "4", "--out", str(serial))  # one process: this one
     assert r.returncode == 0, r.stderr[-2000:]
-    r = _generate(on_ray, 4, "--ray")
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert "4 episodes in" in r.stdout and "merged" in r.stdout
-    got, want = _records(on_ray), _records(serial)
-    assert sorted(x["shard"] for x in got) == [0, 0, 1, 1]  # two Ray shards ran them
-    assert _without_location(got) == _without_location(want)  # ids, seeds, outcomes, modes, event times, diagnostics
-    lengths = _episode_lengths(on_ray)
-    assert lengths == _episode_lengths(serial)  # same episodes and frames, in plan order
-    assert len(lengths) == 4 and len(set(lengths)) > 1  # (distinct lengths: the order is really checked)
-
-
-def test_a_killed_ray_worker_is_retried_and_no_episode_is_lost_or_repeated(tmp_path):
-    out = tmp_path / "killed"
-    proc = subprocess.Popen(CLI + NAV + ["--episodes", "6", "--out", str(out), "--ray"], stdout=subprocess.DEVNULL,
+    proc = subprocess.Popen(CLI + NAV + ["--episodes", "4", "--out", str(on_ray), "--ray"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=ENV)
-    parts = out / ".aerobench" / "parts"
+    parts = on_ray / ".aerobench" / "parts"
     deadline = time.monotonic() + 600
     while time.monotonic() < deadline and not (parts.is_dir() and any(p.name.startswith("part-") for p in parts.iterdir())):
         time.sleep(0.2)
     workers = subprocess.run(["pgrep", "-f", "ray::_generate_shard"], capture_output=True, text=True).stdout.split()
     assert workers, "no Ray worker was running a generation shard"
-    os.kill(int(workers[0]), signal.SIGKILL)  # mid-run: the shards have 3 episodes each, one part is committed
-    _, stderr = proc.communicate(timeout=900)
+    os.kill(int(workers[0]), signal.SIGKILL)  # mid-run: each shard has two episodes, one part is committed
+    stdout, stderr = proc.communicate(timeout=900)
     assert proc.returncode == 0, stderr[-2000:]
-    rows = _records(out)
-    assert sorted(x["episode_index"] for x in rows) == list(range(6))  # every planned episode exactly once
-    assert len(_episode_lengths(out)) == 6
+    assert "4 episodes in" in stdout and "merged" in stdout
+    got, want = _records(on_ray), _records(serial)
+    assert sorted(x["episode_index"] for x in got) == [0, 1, 2, 3]  # every planned episode exactly once
+    assert sorted(x["shard"] for x in got) == [0, 0, 1, 1]  # two Ray shards ran them
+    assert _without_location(got) == _without_location(want)  # ids, seeds, outcomes, modes, event times, diagnostics
+    lengths = _episode_lengths(on_ray)
+    assert lengths == _episode_lengths(serial)  # same episodes and frames, in plan order
+    assert len(lengths) == 4 and len(set(lengths)) > 1  # (distinct lengths: the order is really checked)
 
 
 def test_eval_on_ray_gives_the_cells_of_one_process(tmp_path):
@@ -91,7 +82,7 @@ def test_eval_on_ray_gives_the_cells_of_one_process(tmp_path):
 
 
 def test_ray_address_without_a_cluster_is_one_line(tmp_path):
-    r = _generate(tmp_path / "x", 1, "--ray", "127.0.0.1:1")
+    r = aerobench_here(*NAV, "--episodes", "1", "--out", str(tmp_path / "x"), "--ray", "127.0.0.1:1")
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [
         "aerobench generate: error: no Ray cluster at 127.0.0.1:1: start one there with `ray start --head --port 1`, "
@@ -100,38 +91,39 @@ def test_ray_address_without_a_cluster_is_one_line(tmp_path):
 
 
 GPU_SHARDS = """
-import json, os, sys
+import json, os
 import ray
 from aerobench.rollout.ray_shards import default_shards, run_shards, shard_gpus
 
 def task(index, progress):
     return index, os.environ.get("CUDA_VISIBLE_DEVICES"), [str(g) for g in ray.get_gpu_ids()]
 
-ray.init(num_cpus=2, num_gpus=int(sys.argv[1]), include_dashboard=False, log_to_driver=False)
-try:
-    shards = default_shards("physx_cuda")
-    print(json.dumps({"shards": shards, "cpu_shards": default_shards("physx_cpu"),
-                      "results": run_shards(task, [(i,) for i in range(shards)], num_gpus=shard_gpus("physx_cuda"))}))
-except ValueError as e:
-    print("error:", e)
+ray.init(num_cpus=2, num_gpus=2, include_dashboard=False, log_to_driver=False)
+shards = default_shards("physx_cuda")
+print(json.dumps({"shards": shards, "cpu_shards": default_shards("physx_cpu"),
+                  "results": run_shards(task, [(i,) for i in range(shards)], num_gpus=shard_gpus("physx_cuda"))}))
 """
 
 
-def _gpu_shards(declared_gpus: int) -> str:
-    """Ray scheduling of physx_cuda shards on a local runtime that declares `declared_gpus` GPUs (Ray schedules by the
-    declared resource and sets CUDA_VISIBLE_DEVICES; no GPU is touched, so this runs on a CPU machine)."""
-    r = subprocess.run([sys.executable, "-c", GPU_SHARDS, str(declared_gpus)], capture_output=True, text=True,
-                       timeout=300, env=ENV)
+def test_physx_cuda_shards_get_one_gpu_each():
+    """Ray scheduling of physx_cuda shards on a local runtime that declares 2 GPUs (Ray schedules by the declared
+    resource and sets CUDA_VISIBLE_DEVICES; no GPU is touched, so this runs on a CPU machine)."""
+    r = subprocess.run([sys.executable, "-c", GPU_SHARDS], capture_output=True, text=True, timeout=300, env=ENV)
     assert r.returncode == 0, r.stderr[-2000:]
-    return r.stdout.strip().splitlines()[-1]
-
-
-def test_physx_cuda_shards_get_one_gpu_each_and_a_cluster_without_gpus_is_one_line():
-    out = json.loads(_gpu_shards(2))
+    out = json.loads(r.stdout.strip().splitlines()[-1])
     assert out["shards"] == 2 and out["cpu_shards"] == 2  # one shard per GPU; per CPU on physx_cpu
     devices = sorted(visible for _, visible, _ in out["results"])
     assert devices == ["0", "1"], out  # each shard sees only its own GPU
     assert all(ids == [visible] for _, visible, ids in out["results"])
-    assert _gpu_shards(0) == ("error: --sim-backend physx_cuda shards need a GPU each and this Ray runtime offers none: "
-                              "run on a GPU node (`ray start --head --num-gpus N` there, then --ray HOST:PORT), or use "
-                              "physx_cpu")
+
+
+def test_physx_cuda_shards_on_a_runtime_without_gpus_are_one_line(monkeypatch):
+    """What the runtime offers is Ray's answer (`ray.cluster_resources`); the shards are refused before any task."""
+    from aerobench.rollout.ray_shards import run_shards, shard_gpus
+
+    monkeypatch.setattr(ray, "cluster_resources", lambda: {"CPU": 2.0})
+    with pytest.raises(ValueError) as e:
+        run_shards(lambda index, progress: index, [(0,), (1,)], num_gpus=shard_gpus("physx_cuda"))
+    assert str(e.value) == ("--sim-backend physx_cuda shards need a GPU each and this Ray runtime offers none: run on a "
+                            "GPU node (`ray start --head --num-gpus N` there, then --ray HOST:PORT), or use physx_cpu")
+    assert not ray.is_initialized()

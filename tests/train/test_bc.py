@@ -29,6 +29,7 @@ from aerobench.train.bc import (
     within_budget,
 )
 from aerobench.train.common import read_scalars, torch_threads
+from tests.cli_here import aerobench_here
 
 BIN = Path(sys.executable).parent
 
@@ -53,6 +54,9 @@ def _dataset(root: Path, episodes: int, max_steps: int, cameras: bool, seed: int
     return root
 
 
+pytestmark = pytest.mark.xdist_group("bc_dataset")  # the module's dataset and BC run are made once, on one worker
+
+
 @pytest.fixture(scope="module")
 def state_dataset(tmp_path_factory) -> Path:
     """Two expert Pick episodes cut at 200 steps, both kept (keep all). With seed 3 the expert needs 195 and 216
@@ -63,8 +67,9 @@ def state_dataset(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def trained(state_dataset, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("bc_run")
-    _run([str(BIN / "aerobench"), "train", "bc", "--dataset", str(state_dataset), "--out", str(out), "--steps", "300",
-          "--batch-size", "64", "--log-every", "25", "--no-progress"], cwd=out)
+    r = aerobench_here("train", "bc", "--dataset", str(state_dataset), "--out", str(out), "--steps", "300",
+                       "--batch-size", "64", "--log-every", "25", "--no-progress")
+    assert r.returncode == 0, r.stderr[-3000:]
     return out
 
 
@@ -289,12 +294,11 @@ def test_bc_errors_are_one_line(state_dataset, tmp_path):
     train_bc(BCConfig(dataset=str(state_dataset), out=str(run), steps=2, hidden=(16,), progress=False))
     with pytest.raises(ValueError, match="different config.*hidden"):
         train_bc(BCConfig(dataset=str(state_dataset), out=str(run), steps=4, hidden=(32,), progress=False))
-    proc = _run([str(BIN / "aerobench"), "eval", "--policy", "ppo", "--checkpoint", str(run), "--setting", "TidyHouse",
-                 "--skills", "pick", "--episodes-per-object", "1", "--out", str(tmp_path / "e")], cwd=tmp_path, ok=False)
+    proc = aerobench_here("eval", "--policy", "ppo", "--checkpoint", str(run), "--setting", "TidyHouse", "--skills",
+                          "pick", "--episodes-per-object", "1", "--out", str(tmp_path / "e"))
     assert proc.returncode == 2 and "holds a bc policy; use --policy bc" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
-    proc = _run([str(BIN / "aerobench"), "train", "bc", "--dataset", str(state_dataset), "--out", str(tmp_path / "x"),
-                 "--outcomes", "Q"], cwd=tmp_path, ok=False)
+    proc = aerobench_here("train", "bc", "--dataset", str(state_dataset), "--out", str(tmp_path / "x"), "--outcomes", "Q")
     assert proc.returncode == 2 and "unknown outcomes" in proc.stderr
     assert set(CHECKPOINT_FILES) <= {p.name for p in (run / "checkpoint").iterdir()}
 
@@ -438,24 +442,29 @@ def test_dagger_the_bc_flies_and_the_expert_labels_every_state_it_visits(trained
         RolloutSpec(**spec, policy="bc", checkpoint="x", labeler="random")
 
 
-def test_dagger_from_the_command_line_joined_with_the_demonstrations_and_trained_on(state_dataset, trained, tmp_path):
-    aero = str(BIN / "aerobench")
+def test_dagger_from_the_command_line_joined_with_the_demonstrations_and_trained_on(state_dataset, trained, tmp_path,
+                                                                                      capsys):
+    """The CLI's commands in this process (each subprocess paid 10-15 s of imports): the other CLI tests run them as
+    the user does."""
+    from aerobench.cli import main
+
     rounds = tmp_path / "round1"
-    _run([aero, "generate", "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can", "--episodes",
-          "1", "--seed", "5", "--no-cameras", "--policy", "bc", "--checkpoint", str(trained), "--label-with", "expert",
-          "--keep", "all", "--out", str(rounds)], cwd=tmp_path)
+    assert main(["generate", "--setting", "TidyHouse", "--skills", "pick", "--objects", "master_chef_can", "--episodes",
+                 "1", "--seed", "5", "--no-cameras", "--policy", "bc", "--checkpoint", str(trained), "--label-with",
+                 "expert", "--keep", "all", "--out", str(rounds)]) == 0
     assert "--label-with expert" in (rounds / "README.md").read_text()  # the card's generate command
     joined = tmp_path / "joined"
-    _run([aero, "dataset", "join", str(state_dataset), str(rounds), "--out", str(joined)], cwd=tmp_path)
+    assert main(["dataset", "join", str(state_dataset), str(rounds), "--out", str(joined)]) == 0
     rows = read_jsonl(joined / "meta" / "aerobench_episodes.jsonl")
     assert [(r["policy"], r["dataset_episode_index"]) for r in rows] == [("expert", 0), ("expert", 1), ("bc", 2)]
     out = tmp_path / "bc1"
-    _run([aero, "train", "bc", "--dataset", str(joined), "--out", str(out), "--steps", "2", "--outcomes", "S,F,T",
-          "--no-progress"], cwd=tmp_path)
+    assert main(["train", "bc", "--dataset", str(joined), "--out", str(out), "--steps", "2", "--outcomes", "S,F,T",
+                 "--no-progress"]) == 0
     starts = json.loads((out / "checkpoint" / "starts.json").read_text())["starts"]
     # the demonstrations' two starts and the DAgger round's one: all seen in training
     assert sorted(s[3] for s in starts) == [3 * SEED_STRIDE, 3 * SEED_STRIDE + 1, 5 * SEED_STRIDE]
-    bad = _run([aero, "generate", "--setting", "TidyHouse", "--skills", "pick", "--episodes", "1", "--no-cameras",
-                "--policy", "expert", "--checkpoint", str(trained), "--out", str(tmp_path / "x")], cwd=tmp_path, ok=False)
-    assert bad.returncode != 0 and "the expert policy takes no --checkpoint" in bad.stderr
+    capsys.readouterr()
+    assert main(["generate", "--setting", "TidyHouse", "--skills", "pick", "--episodes", "1", "--no-cameras",
+                 "--policy", "expert", "--checkpoint", str(trained), "--out", str(tmp_path / "x")]) != 0
+    assert "the expert policy takes no --checkpoint" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()

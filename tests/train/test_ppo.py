@@ -4,9 +4,6 @@ starts from an image BC checkpoint and acts on the three cameras."""
 
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -20,8 +17,7 @@ from aerobench.train.bc import BCConfig, train_bc
 from aerobench.train.common import read_scalars, torch_threads
 from aerobench.train.ppo import SUCCESS_WINDOW, PPOConfig, linear_decay, lr_factor, success_triggered, train_ppo
 from aerobench.train.rewards import RewardWeights, closeness, potential, reward
-
-BIN = Path(sys.executable).parent
+from tests.cli_here import aerobench_here
 
 
 def _info(n=2, **values) -> dict:
@@ -253,10 +249,9 @@ def test_ppo_from_bc_keeps_the_actor_during_critic_warmup_and_evaluates(bc_check
     assert config["algorithm"] == "ppo" and config["train"]["init_bc"] == str(bc_checkpoint)  # as given: no machine path
 
     out = tmp_path / "eval"
-    env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run([str(BIN / "aerobench"), "eval", "--policy", "ppo", "--checkpoint", str(run), "--setting",
-                           "TidyHouse", "--skills", "pick", "--objects", "master_chef_can", "--episodes-per-object", "2",
-                           "--max-steps", "8", "--out", str(out)], env=env, capture_output=True, text=True, timeout=600)
+    proc = aerobench_here("eval", "--policy", "ppo", "--checkpoint", str(run), "--setting", "TidyHouse", "--skills",
+                          "pick", "--objects", "master_chef_can", "--episodes-per-object", "2", "--max-steps", "8",
+                          "--out", str(out))
     assert proc.returncode == 0, proc.stderr[-3000:]
     results = json.loads((out / "results.json").read_text())
     (cell,) = results["cells"]
@@ -384,9 +379,7 @@ def test_ppo_config_errors_are_one_line(tmp_path):
         PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), num_minibatches=5)
     with pytest.raises(ValueError, match="--ray runs the --num-envs physx_cpu envs as Ray actors: give --num-envs 2"):
         PPOConfig(setting="TidyHouse", skill="pick", out=str(tmp_path), ray="local")
-    env = {**os.environ, "HF_HUB_OFFLINE": "1", "MS_SKIP_ASSET_DOWNLOAD_PROMPT": "1", "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run([str(BIN / "aerobench"), "train", "ppo", "--setting", "Nowhere", "--skill", "pick", "--out",
-                           str(tmp_path / "x")], env=env, capture_output=True, text=True, timeout=120)
+    proc = aerobench_here("train", "ppo", "--setting", "Nowhere", "--skill", "pick", "--out", str(tmp_path / "x"))
     assert proc.returncode == 2 and "TidyHouse" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 

@@ -15,7 +15,7 @@ from aerobench.envs.platforms import get_platform
 from tests.envs.host_sync import NoHostSync
 
 # every test here builds its packages into a cache of this run's (never the user's)
-pytestmark = pytest.mark.usefixtures("aot_cache")
+pytestmark = [pytest.mark.usefixtures("aot_cache"), pytest.mark.xdist_group("aot_packages")]  # one worker builds each package once (conftest)
 
 
 def _inputs(platform: str, n: int = 3, seed: int = 0):
