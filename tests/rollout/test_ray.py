@@ -14,6 +14,9 @@ import pytest
 from tests.cli_here import aerobench_here
 
 ray = pytest.importorskip("ray")  # a pinned dependency: set-up installs it, so this only guards a broken venv
+# One local Ray runtime at a time on the 2-core machine: the Ray tests (here and in tests/train/test_ppo.py) share a
+# worker. Two runtimes side by side, each with its workers, once left a GPU-shard run waiting 300 s without a result.
+pytestmark = pytest.mark.xdist_group("ray")
 
 CLI = [sys.executable, "-m", "aerobench.cli"]
 ENV = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1", PYTHONUNBUFFERED="1")
@@ -99,9 +102,12 @@ def task(index, progress):
     return index, os.environ.get("CUDA_VISIBLE_DEVICES"), [str(g) for g in ray.get_gpu_ids()]
 
 ray.init(num_cpus=2, num_gpus=2, include_dashboard=False, log_to_driver=False)
-shards = default_shards("physx_cuda")
-print(json.dumps({"shards": shards, "cpu_shards": default_shards("physx_cpu"),
-                  "results": run_shards(task, [(i,) for i in range(shards)], num_gpus=shard_gpus("physx_cuda"))}))
+try:
+    shards = default_shards("physx_cuda")
+    print(json.dumps({"shards": shards, "cpu_shards": default_shards("physx_cpu"),
+                      "results": run_shards(task, [(i,) for i in range(shards)], num_gpus=shard_gpus("physx_cuda"))}))
+finally:
+    ray.shutdown()
 """
 
 

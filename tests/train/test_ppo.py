@@ -303,6 +303,7 @@ def test_ppo_steps_envs_in_worker_processes_on_physx_cpu(tmp_path):
     assert all(math.isfinite(v) for _, v in read_scalars(run, "losses/policy_loss"))
 
 
+@pytest.mark.xdist_group("ray")  # one local Ray runtime at a time (tests/rollout/test_ray.py)
 @pytest.mark.parametrize("workers", ["processes", "ray"])
 def test_rollout_workers_collect_the_windows_of_in_process_collectors(tmp_path, workers):
     """Worker i of 2 (a process, or a Ray actor) collects exactly the window an in-process collector of lane i
@@ -350,6 +351,7 @@ def test_rollout_workers_collect_the_windows_of_in_process_collectors(tmp_path, 
     assert [e["row"] for e in joined.episodes if e["step"] == windows[1].episodes[0]["step"]][-1] == 1
 
 
+@pytest.mark.xdist_group("ray")  # one local Ray runtime at a time (tests/rollout/test_ray.py)
 def test_ppo_rollout_workers_on_ray(tmp_path):
     """--ray: the two envs are Ray actors of a local runtime, the learner runs here; same bookkeeping as processes."""
     import ray
