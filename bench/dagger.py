@@ -189,8 +189,9 @@ def run(b: Budget, out: Path) -> dict:
     final = None
     if b.final_per_object:
         last = rows[-1]
-        final = summary_row(last["policy"], Path(last["data"]),
-                            evaluate(steps, b, "final", checkpoint, b.final_per_object, b.final_seed), b.final_seed)
+        # named after its policy: a run continued with more rounds evaluates its new last policy, not the old one's
+        final = summary_row(last["policy"], Path(last["data"]), evaluate(
+            steps, b, f"final_{last['policy']}", checkpoint, b.final_per_object, b.final_seed), b.final_seed)
     summary = {"budget": asdict(b), "rounds": rows, "final": final, "checkpoint": str(checkpoint)}
     (out / "dagger.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

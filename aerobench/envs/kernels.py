@@ -21,6 +21,7 @@ inductor to capture the call in a CUDA graph on a GPU (docs/gpu.md).
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import logging
 import os
@@ -166,21 +167,9 @@ def _load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: s
     )).encode()).hexdigest()[:24]
     path = cache_dir() / folder / f"{digest}.pt2"
     if not path.is_file():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".pt2", dir=path.parent)
-        os.close(fd)
-        try:  # built beside its final name and renamed: a concurrent process sees a whole package or none
-            free = {i: torch.export.Dim(f"dim{i}_{d}", min=1) for i, d in dynamic.items()}
-            dynamic_shapes = (tuple({dynamic[i]: free[i]} if i in free else None for i in range(len(tensors))),)
-            with warnings.catch_warnings(), _cpu_wrapper(stack_allocation):
-                warnings.simplefilter("ignore", FutureWarning)  # torch's own pytree notes, nothing to act on
-                program = torch.export.export(_Exported(fn), tuple(tensors), strict=False,
-                                              dynamic_shapes=dynamic_shapes if dynamic else None)
-                torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(options))
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        with _one_build_at_a_time():
+            if not path.is_file():  # another process may have built it while this one waited
+                _build(fn, tensors, dynamic, options, stack_allocation, path)
     # Loading checks the package against the CPU's vector ISA; trust the advertised one here too (the key has it;
     # `trusted_vector_isa` covers the probes that `cpp.vec_isa_ok` leaves).
     before = _mapped_libraries()
@@ -197,6 +186,50 @@ def _load_aot(fn: Callable, tensors: Sequence[torch.Tensor], key: str, folder: s
             entry = exc
     _remove_extractions(loaded)
     return Package(run, entry)
+
+
+def _build(fn: Callable, tensors: Sequence[torch.Tensor], dynamic: dict[int, int], options: dict,
+           stack_allocation: bool, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".pt2", dir=path.parent)
+    os.close(fd)
+    try:  # built beside its final name and renamed: a concurrent reader sees a whole package or none
+        free = {i: torch.export.Dim(f"dim{i}_{d}", min=1) for i, d in dynamic.items()}
+        dynamic_shapes = (tuple({dynamic[i]: free[i]} if i in free else None for i in range(len(tensors))),)
+        with warnings.catch_warnings(), _cpu_wrapper(stack_allocation):
+            warnings.simplefilter("ignore", FutureWarning)  # torch's own pytree notes, nothing to act on
+            program = torch.export.export(_Exported(fn), tuple(tensors), strict=False,
+                                          dynamic_shapes=dynamic_shapes if dynamic else None)
+            torch._inductor.aoti_compile_and_package(program, package_path=tmp, inductor_configs=dict(options))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+BUILD_LOCK = "aerobench_aot_build.lock"
+
+
+@contextmanager
+def _one_build_at_a_time() -> Iterator[None]:
+    """Ahead-of-time builds one at a time across processes. AOTInductor writes a build's files into inductor's cache
+    folder under a name taken from the generated code, without a lock, then zips them: two processes building the
+    same graph at once (K workers starting on a fresh cache, or two keys for one function) wrote the same files,
+    and one zipped a file the other had just truncated (a package whose metadata was empty, which failed to load).
+    The lock lives in that shared folder; a process that waited finds the package built and loads it."""
+    try:
+        from torch._inductor.runtime.cache_dir_utils import cache_dir as inductor_cache_dir
+
+        folder = Path(inductor_cache_dir())
+    except ImportError:
+        folder = cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / BUILD_LOCK, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 _PROC_MAPS = Path("/proc/self/maps")

@@ -77,3 +77,19 @@ def test_a_smoke_sized_dagger_run_trains_on_expert_labels_of_the_policys_own_fli
     assert marks == sorted(["demos", "demos.merge", "bc0", "eval0", "r1", "r1.merge", "j1", "bc1", "eval1"])
     again = dagger.main(argv)  # everything is done: the same table, nothing rerun
     assert again["rounds"] == summary["rounds"]
+
+
+def test_a_run_continued_with_more_rounds_evaluates_its_new_last_policy_on_the_final_starts(tmp_path, monkeypatch):
+    """The final evaluation's step is named after its policy: `--rounds 3` then `--rounds 5` on one folder evaluates
+    bc5 on the final starts (its step was once named `final` for any policy, and a longer run reported bc3's)."""
+    evaluated = []
+    monkeypatch.setattr(dagger, "generate", lambda steps, b, name, *a: tmp_path / name)
+    monkeypatch.setattr(dagger, "train", lambda steps, b, name, *a: tmp_path / name / "checkpoint")
+    monkeypatch.setattr(dagger, "dataset_size", lambda folder: (1, 1))
+    monkeypatch.setattr(dagger, "evaluate", lambda steps, b, name, checkpoint, *a: evaluated.append(
+        (name, checkpoint.parent.name)) or {})
+    monkeypatch.setattr(dagger, "summary_row", lambda name, data, results, seed: {"policy": name, "data": str(data)})
+    monkeypatch.setattr(dagger.Steps, "run", lambda self, name, *commands: None)
+    for rounds in (1, 2):
+        summary = dagger.run(dagger.Budget(rounds=rounds, final_per_object=1), tmp_path)
+        assert summary["final"]["policy"] == f"bc{rounds}" and evaluated[-1] == (f"final_bc{rounds}", f"bc{rounds}")

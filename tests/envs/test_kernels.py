@@ -1,6 +1,7 @@
 """`kernels`: one shared kernel per process for each name, key, device and compile setting; a compiled call's outputs
 are the caller's."""
 
+import contextlib
 from pathlib import Path
 
 import pytest
@@ -85,6 +86,51 @@ def test_a_loaded_package_leaves_no_extracted_files_behind(aot_cache):
     packages = [path for path in mapped if "/data/aotinductor/model/" in path]
     assert packages  # the package's library is mapped ...
     assert not [path for path in packages if Path(path).exists()]  # ... and its extracted files are gone
+
+
+def test_builds_take_turns_and_a_build_that_waited_loads_the_package_another_built(aot_cache, monkeypatch):
+    """AOTInductor writes a build's files into inductor's shared cache folder under a name taken from the code, so two
+    processes building one graph at once (this module's `_step` under three keys, on two xdist workers) zipped each
+    other's half-written files: a package with empty metadata (CI, a kernel left on `torch.compile`). Builds hold one
+    lock across processes, and a build that waited for it loads the package the other one made instead of building."""
+    import fcntl
+    import shutil
+
+    from torch._inductor.runtime.cache_dir_utils import cache_dir as inductor_cache_dir
+
+    from aerobench.envs import kernels
+
+    lock_file = Path(inductor_cache_dir()) / kernels.BUILD_LOCK
+    real_build = torch._inductor.aoti_compile_and_package
+    locked_during_build = []
+
+    def watched_build(*args, **kwargs):
+        with open(lock_file, "a") as other:  # another open file: flock sees another holder, as another process
+            try:
+                fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                locked_during_build.append(False)
+                fcntl.flock(other, fcntl.LOCK_UN)
+            except BlockingIOError:
+                locked_during_build.append(True)
+        return real_build(*args, **kwargs)
+
+    monkeypatch.setattr(torch._inductor, "aoti_compile_and_package", watched_build)
+    first, second = aot_cache / "built_by_the_first", aot_cache / "built_while_waiting"
+    monkeypatch.setenv("AEROBENCH_CACHE_DIR", str(first))
+    kernel = Kernel(_plus_one, "test_build_lock", ("plus one",), [], "cpu", compile=True)
+    kernel(torch.ones(2))
+    assert kernel.backend == "compiled ahead of time" and locked_during_build == [True]
+
+    @contextlib.contextmanager
+    def the_other_process_finishes_while_this_one_waits():
+        shutil.copytree(first, second)
+        yield
+
+    monkeypatch.setattr(kernels, "_one_build_at_a_time", the_other_process_finishes_while_this_one_waits)
+    monkeypatch.setenv("AEROBENCH_CACHE_DIR", str(second))
+    again = Kernel(_plus_one, "test_build_lock", ("plus one",), [], "cpu", compile=True)
+    assert torch.equal(again(torch.ones(2))[0], torch.full((2,), 2.0))
+    assert again.backend == "compiled ahead of time" and locked_during_build == [True]  # loaded, not built again
 
 
 def _elementwise(x: torch.Tensor) -> tuple[torch.Tensor]:
