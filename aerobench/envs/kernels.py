@@ -21,7 +21,6 @@ inductor to capture the call in a CUDA graph on a GPU (docs/gpu.md).
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import logging
 import os
@@ -35,6 +34,7 @@ from typing import NamedTuple
 
 import torch
 
+from ..file_lock import exclusive
 from .direct_call import UnsupportedPackage, direct_entry
 
 log = logging.getLogger(__name__)
@@ -224,12 +224,8 @@ def _one_build_at_a_time() -> Iterator[None]:
     except ImportError:
         folder = cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / BUILD_LOCK, "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+    with exclusive(folder / BUILD_LOCK):
+        yield
 
 
 _PROC_MAPS = Path("/proc/self/maps")

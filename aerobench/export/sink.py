@@ -18,14 +18,13 @@ Layout (docs/datasets.md has the full description):
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import json
 import os
 import re
 import shutil
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +32,7 @@ import numpy as np
 from ..annotation.record import EpisodeRecord
 from ..envs.observations import TASK_STATE_VERSION
 from ..envs.tasks import SKILLS
+from ..file_lock import exclusive
 from ..rollout.episode import EVENT_FLAGS, EpisodeData
 from .depth import DEPTH_ENCODING
 from .features import (
@@ -353,15 +353,9 @@ class DatasetSink:
 # ── merging parts into root ───────────────────────────────────────────────────────────────────────────────────
 
 
-@contextlib.contextmanager
-def _merge_lock(root: Path) -> Iterator[None]:
+def _merge_lock(root: Path) -> AbstractContextManager[None]:
     """One merge at a time per root (shards may finish together)."""
-    with open(bookkeeping_dir(root) / LOCK_FILE, "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+    return exclusive(bookkeeping_dir(root) / LOCK_FILE)
 
 
 def read_dataset_meta(root: Path) -> dict | None:
