@@ -21,6 +21,7 @@ import bc_inputs  # noqa: E402
 import call_warmth  # noqa: E402
 import descent_onset  # noqa: E402
 import diversity  # noqa: E402
+import label_predictability  # noqa: E402
 import learning_curves  # noqa: E402
 import ppo_progress  # noqa: E402
 import release_aliasing  # noqa: E402
@@ -409,6 +410,27 @@ def test_release_aliasing_counts_the_still_closed_frames_before_a_release(tmp_pa
     assert field_slices(TASK_STATE_FIELDS)["skill"].stop == release_aliasing.AFTER_SKILL
     with pytest.raises(SystemExit):
         release_aliasing.main([str(tmp_path / "missing")])
+
+
+def test_label_predictability_finds_the_reading_a_label_depends_on():
+    """Synthetic frames: the flight command is a function of xi only, the gripper of the finger positions only; the
+    input sets with that reading explain it, the BC's task-state fields alone do not."""
+    rng = np.random.default_rng(0)
+    t = 1200
+    frames = {"task": rng.normal(size=(t, 34)).astype(np.float32), "proprio": rng.normal(size=(t, 25)).astype(np.float32),
+              "xi": rng.normal(size=(t, 3)).astype(np.float32), "phase": np.where(np.arange(t) % 2 == 0, 3, 2),
+              "episode": np.arange(t) // 200, "action": np.zeros((t, 8), np.float32)}
+    frames["action"][:, :3] = np.tanh(frames["xi"])
+    frames["action"][:, -1] = np.sign(frames["proprio"][:, 15])  # the left finger's position
+    results = label_predictability.measure(frames, held_out=2, steps=600, phase_names={2: "pinch", 3: "drive"})
+    assert set(results) == set(label_predictability.INPUT_SETS)
+    assert results["bc+velocity_integral"]["drive"]["flight_r2"] > 0.8
+    assert results["bc"]["drive"]["flight_r2"] < 0.3
+    assert results["bc+finger_position"]["pinch"]["gripper_wrong"] < 0.3
+    assert results["bc"]["pinch"]["gripper_wrong"] > 0.4  # a coin flip: the BC's fields say nothing of the fingers
+    assert results["bc+all"]["drive"]["frames"] == 200  # two held-out episodes of 200 frames, half of them drive
+    with pytest.raises(ValueError, match="--held-out"):
+        label_predictability.measure(frames, held_out=6, steps=1, phase_names={2: "pinch"})
 
 
 def _pick_frame(height: float, xy: float, speed: float, vz: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
