@@ -82,13 +82,15 @@ def collect(skill: str, episodes: int, seed: int, max_steps: int = 900) -> dict[
             for k, v in rows.items()}
 
 
+# the layouts of the recorded task and proprio rows (the arm platform's, which the Open / Close experts fly)
+LAYOUT = {"task": field_slices(task_state_fields(with_arm=True)), "proprio": field_slices(STATE_FIELDS + ARM_STATE_FIELDS)}
+
+
 def inputs(frames: dict[str, np.ndarray], extra: tuple) -> np.ndarray:
     """The BC's task-state fields, plus `extra`'s readings, as one `(T, D)` matrix."""
-    task = field_slices(task_state_fields(with_arm=True))
-    proprio = field_slices(STATE_FIELDS + ARM_STATE_FIELDS)
-    parts = [frames["task"][:, task[f]] for f in BC_FIELDS]
+    parts = [frames["task"][:, LAYOUT["task"][f]] for f in BC_FIELDS]
     for source, name in extra:
-        parts.append(frames["xi"] if source == "xi" else frames[source][:, (task if source == "task" else proprio)[name]])
+        parts.append(frames["xi"] if source == "xi" else frames[source][:, LAYOUT[source][name]])
     return np.concatenate(parts, axis=1)
 
 
@@ -172,7 +174,7 @@ def main(argv: list[str] | None = None) -> dict:
     from aerobench.expert.articulation import ArticulationPhase
 
     args.out.mkdir(parents=True, exist_ok=True)
-    cache = args.out / f"frames_{args.skill}_seed{args.seed}_{args.episodes}.npz"
+    cache = args.out / f"frames_{args.skill}_seed{args.seed}_{args.episodes}x{args.max_steps}.npz"
     if cache.is_file():
         frames = dict(np.load(cache))
     else:

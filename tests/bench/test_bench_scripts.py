@@ -417,11 +417,14 @@ def test_label_predictability_finds_the_reading_a_label_depends_on():
     input sets with that reading explain it, the BC's task-state fields alone do not."""
     rng = np.random.default_rng(0)
     t = 1200
-    frames = {"task": rng.normal(size=(t, 34)).astype(np.float32), "proprio": rng.normal(size=(t, 25)).astype(np.float32),
+    width = {k: max(s.stop for s in layout.values()) for k, layout in label_predictability.LAYOUT.items()}
+    frames = {"task": rng.normal(size=(t, width["task"])).astype(np.float32),
+              "proprio": rng.normal(size=(t, width["proprio"])).astype(np.float32),
               "xi": rng.normal(size=(t, 3)).astype(np.float32), "phase": np.where(np.arange(t) % 2 == 0, 3, 2),
               "episode": np.arange(t) // 200, "action": np.zeros((t, 8), np.float32)}
     frames["action"][:, :3] = np.tanh(frames["xi"])
-    frames["action"][:, -1] = np.sign(frames["proprio"][:, 15])  # the left finger's position
+    left_finger = label_predictability.LAYOUT["proprio"]["finger_position"].start
+    frames["action"][:, -1] = np.sign(frames["proprio"][:, left_finger])
     results = label_predictability.measure(frames, held_out=2, steps=600, phase_names={2: "pinch", 3: "drive"})
     assert set(results) == set(label_predictability.INPUT_SETS)
     assert results["bc+velocity_integral"]["drive"]["flight_r2"] > 0.8
