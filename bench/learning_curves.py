@@ -167,7 +167,7 @@ def in_workers(fn, calls: list[tuple]) -> list:
 
 
 def _one_thread(fn, *args):
-    from aerobench.train.common import torch_threads
+    from aerobench.threads import torch_threads
 
     with torch_threads(1):
         return fn(*args)

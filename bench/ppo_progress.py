@@ -151,29 +151,30 @@ def gripper_probe(run: Path, episodes: int) -> list[dict]:
     the actor's probability of "close", the sent vertical command (normalized) and the object's lift."""
     import torch
 
-    from aerobench.policies.inputs import FrameHistory, InputSpec
     from aerobench.policies.learned import load_actor, load_weights
+    from aerobench.policies.observer import ActorObserver
     from aerobench.train.ppo import PPOConfig
-    from aerobench.train.ppo_rollout import SkillEnv, input_frame, sample_action
+    from aerobench.train.ppo_rollout import SkillEnv, sample_action
 
     checkpoint = run / "checkpoint"
     meta, actor, normalizer = load_actor(checkpoint)
     model, train = meta["model"], meta["train"]
     if train["skill"] != "pick" or model["gripper"] != "binary":
         raise ValueError("--gripper-probe reads a Pick run with the binary gripper")
-    log_std, inputs = load_weights(checkpoint)["log_std"], InputSpec.from_dict(model["inputs"])
+    log_std = load_weights(checkpoint)["log_std"]
     config = PPOConfig(setting=train["setting"], skill="pick", out=str(run), seed=PROBE_SEED, objects=train["objects"],
                        platform=train["platform"], controller=train["controller"],
                        max_episode_steps=train["max_episode_steps"], progress=False)
     env = SkillEnv(config, "state_dict", 1)
-    history, steps = FrameHistory(inputs.history), []
+    observer, steps = ActorObserver(model), []
     torch.manual_seed(PROBE_SEED)
     for _ in range(episodes):
         obs, _ = env.reset_all()
-        history.reset(torch.arange(1))
+        observer.reset(torch.arange(1))
         done = False
         while not done:
-            x = {"state": normalizer.state(history.push(input_frame(env, obs, inputs)))}
+            raw = observer.observe(env.env.unwrapped, obs)
+            x = {**raw, "state": normalizer.state(raw["state"])}
             out, _, _, sent = sample_action(actor, x, log_std, normalizer, "binary")
             obs, _, terminated, truncated, info = env.env.step(sent)
             steps.append({"distance": float(info["tcp_to_grasp_point"][0]), "grasped": bool(info["is_grasped"][0]),

@@ -34,6 +34,9 @@ def add_eval(sub) -> None:
                    help="truncate episodes after N control steps (smoke tests; not comparable with full-length results)")
     p.add_argument("--workers", type=int, default=1, help="physx_cpu: run the episodes in this many worker processes "
                    "(shards; e.g. the number of cores)")
+    p.add_argument("--inputs", default=None, choices=("vision", "privileged"),
+                   help="the input tier this evaluation is for (aerobench.tiers): a policy that reads outside it is "
+                        "refused (results always record the policy's tier)")
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
     add_ray_options(p)
     p.set_defaults(func=_run_eval)
@@ -48,11 +51,12 @@ def _run_eval(args) -> int:
             episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
             seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
             dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
-            ray=args.ray,
+            ray=args.ray, inputs=args.inputs,
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
         config.needs_images()  # unknown names and bad checkpoints fail before any work
+        config.input_tier()  # and a policy outside --inputs
         spec = config.rollout_spec(record_cameras=False)
         if args.ray is not None:
             from ..rollout.ray_shards import connect

@@ -162,11 +162,12 @@ def object_phrase(name: str) -> str:
 
 
 def instruction(skill: str, *, obj: str = "", where: str = "", target: str = "") -> str:
-    """The language instruction of one skill, from templates ("pick up the tomato soup can from the kitchen counter")."""
+    """The language instruction of one skill, from templates ("pick up the tomato soup can from the kitchen counter",
+    "place the bowl on the marked spot of the dining table")."""
     if skill == "pick":
         return f"pick up the {object_phrase(obj)} from {where}"
-    if skill == "place":
-        return f"place the {object_phrase(obj)} on {where}"
+    if skill == "place":  # the goal point is marked in the scene (envs.skills.markers): the instruction says so
+        return f"place the {object_phrase(obj)} on the marked spot of {where}"
     if skill == "nav":
         return f"fly to {target}"
     if skill in ("open", "close"):

@@ -24,6 +24,7 @@ from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, 
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records, run_record_files, unique_records
 from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes, shard_plans
+from ..threads import torch_threads
 from .held_out import seen_in_training, training_starts
 from .results import failure_modes, summarize, write_results
 
@@ -48,12 +49,22 @@ class EvalConfig:
     chain: tuple[str, ...] | None = None  # e.g. ("pick", "transport", "place"): the spec's chained protocol
     workers: int = 1  # shards run in this many worker processes (with `ray`: this many Ray tasks; 1 = one per CPU)
     ray: str | None = None  # run the shards on Ray: "local" (this machine's cores), "auto" or a head's HOST:PORT
+    inputs: str | None = None  # the input tier the evaluation is for (`aerobench.tiers`): a policy outside it is refused
 
     def __post_init__(self):
         if not (isinstance(self.workers, int) and self.workers >= 1):
             raise ValueError(f"--workers must be a positive integer, got {self.workers}")
         if self.workers > 1 and self.num_envs > 1:
             raise ValueError("--workers splits physx_cpu runs (one env each) into processes; with --num-envs use one")
+
+    def input_tier(self) -> str:
+        """The policy's input tier (the widest of its stage checkpoints'); refuses one outside `inputs`."""
+        from ..policies.registry import check_policy_tier, policy_input_tier
+
+        checkpoints = list(split_checkpoints(self.checkpoint).values())
+        if self.inputs is not None:
+            check_policy_tier(self.policy, checkpoints, self.inputs)
+        return policy_input_tier(self.policy, checkpoints)
 
     def needs_images(self) -> bool:
         """Whether the policy (every stage checkpoint of a chain) reads cameras; also validates name and checkpoint."""
@@ -92,6 +103,7 @@ def evaluate(
     the episodes of every shard as they finish."""
     out = Path(out)
     spec = config.rollout_spec(record_cameras=config.needs_images())
+    tier = config.input_tier()
     held_out = held_out_check(config, spec)
     if config.ray is not None:
         _run_on_ray(config, out, on_progress)
@@ -111,7 +123,7 @@ def evaluate(
         "command": command, "seen_in_training": held_out,
     }
     rows = unique_records(record_files)
-    results = summarize(rows, provenance, label=config.label)
+    results = summarize(rows, provenance, label=config.label, inputs=tier)
     videos = sorted(out.glob("**/videos/*.mp4"))
     if videos:
         results["videos"] = [str(p.relative_to(out)) for p in videos]
@@ -147,9 +159,8 @@ def _run_spec(config: EvalConfig, spec: RolloutSpec) -> dict:
 
 
 def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int]) -> Path:
-    from ..train.common import torch_threads
 
-    with torch_threads(1):  # one process per core: more threads than cores slow small torch ops many-fold
+    with torch_threads():  # one process per core: more threads than cores slow small torch ops many-fold
         return run_shard(config, folder, shard)
 
 
@@ -198,7 +209,7 @@ def _shard_task(config: EvalConfig, folder: str, shard: tuple[int, int], progres
     from ..rollout.ray_shards import episode_reporter
     from ..train.common import torch_threads
 
-    with torch_threads(1):
+    with torch_threads():
         return str(run_shard(config, Path(folder), shard, on_episode=episode_reporter(progress_actor)))
 
 

@@ -20,6 +20,10 @@ from .stats import standard_error, wilson_interval
 
 RESULTS_FORMAT = "aerobench-results"
 RESULTS_VERSION = 1
+# The input tier of a policy whose results name none (aerobench.tiers): the expert and random read what they always
+# read; a learned policy's tier is its checkpoint's (eval asks the policy), unknown where only records are at hand.
+DEFAULT_TIERS = {"expert": "privileged", "random": "none"}
+UNKNOWN_TIER = "unknown"
 
 
 def rate_fields(successes: int, n: int) -> dict:
@@ -134,8 +138,10 @@ def _chain_stages(rows: list[Mapping]) -> list[dict]:
     return out
 
 
-def summarize(records: Iterable[Mapping], provenance: Mapping | None = None, label: str | None = None) -> dict:
-    """A results document from episode-record rows (dicts as in records.jsonl) of one policy on one setting."""
+def summarize(records: Iterable[Mapping], provenance: Mapping | None = None, label: str | None = None,
+              inputs: str | None = None) -> dict:
+    """A results document from episode-record rows (dicts as in records.jsonl) of one policy on one setting;
+    `inputs`: the policy's input tier (`aerobench.tiers`; unknown for records of no known policy)."""
     rows = list(records)
     if not rows:
         raise ValueError("no episode records to summarize")
@@ -168,6 +174,7 @@ def summarize(records: Iterable[Mapping], provenance: Mapping | None = None, lab
         "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "setting": settings.pop(),
         "policy": policy,
+        "inputs": inputs or DEFAULT_TIERS.get(policy, UNKNOWN_TIER),
         "label": label or policy,
         "provenance": dict(provenance or {}),
         "episodes": len(rows),

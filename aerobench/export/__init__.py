@@ -9,7 +9,7 @@
 docs/datasets.md documents the on-disk layout and every column.
 """
 
-from .depth import decode_depth_mm, encode_depth_mm
+from ..depth import decode_depth_mm, encode_depth_mm
 from .features import FPS, build_features, episode_features, robot_type
 from .sink import DatasetSink, read_jsonl, record_from_row
 from .tools import clean_parts, dataset_info, filter_dataset, format_info, merge

@@ -1,7 +1,7 @@
 """The LeRobot feature dict for an episode's shape, and the frames of an `EpisodeData` in that layout.
 
 Keys follow LeRobot's constants (`observation.images.<camera>`, `observation.state`, `action`); aerobench adds
-`observation.depth.<camera>` (packed depth, `export.depth`) and the `annotation.*` columns. docs/datasets.md lists
+`observation.depth.<camera>` (packed depth, `aerobench.depth`) and the `annotation.*` columns. docs/datasets.md lists
 every column.
 """
 
@@ -12,11 +12,11 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
+from ..depth import encode_depth_mm
 from ..envs.observations import ARM_STATE_FIELDS, STATE_DIM, state_field_names, task_state_field_names
 from ..envs.platforms import CONTROL_HZ
 from ..envs.tasks import SKILLS
 from ..rollout.episode import CAMERAS, EVENT_FLAGS, EpisodeData
-from .depth import encode_depth_mm
 
 FPS = CONTROL_HZ  # one dataset frame per control step (20 Hz)
 # LeRobot decodes videos with torchcodec when it loads, else pyav; torchcodec needs FFmpeg's shared libraries

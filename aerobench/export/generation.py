@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..rollout.episode import EpisodeData
 from ..rollout.runner import Progress, RolloutRunner, RolloutSpec
+from ..threads import PER_PROCESS_THREADS, torch_threads
 from .sink import DatasetSink
 from .tools import merge
 
@@ -33,21 +34,22 @@ def generate(
     keep: str = "success",
     part_size: int = 8,
     on_episode: Callable[[EpisodeData, Progress], None] | None = None,
+    threads: int = PER_PROCESS_THREADS,
 ) -> Progress:
-    """Run (or continue) this shard's episodes into the dataset at `out`; the only shard also merges."""
+    """Run (or continue) this shard's episodes into the dataset at `out` with `threads` torch threads; the only shard
+    also merges."""
     sink = open_sink(spec, out, keep, part_size)
-    progress = RolloutRunner(spec, sink, on_episode=on_episode).run()
-    sink.close()
+    with torch_threads(threads):
+        progress = RolloutRunner(spec, sink, on_episode=on_episode).run()
+        sink.close()
     return progress
 
 
 def _generate_shard(spec: RolloutSpec, out: str, keep: str, part_size: int, progress_actor) -> tuple[int, int]:
     """One Ray task: shard `spec.shard` into `out` (not merged); returns (episodes done, successes run now)."""
     from ..rollout.ray_shards import episode_reporter
-    from ..train.common import torch_threads
 
-    with torch_threads(1):  # one task per core
-        progress = generate(spec, out, keep, part_size, on_episode=episode_reporter(progress_actor))
+    progress = generate(spec, out, keep, part_size, on_episode=episode_reporter(progress_actor))  # one task per core
     return progress.done, progress.successes
 
 

@@ -30,11 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from ..annotation.record import EpisodeRecord
+from ..depth import DEPTH_ENCODING
 from ..envs.observations import TASK_STATE_VERSION
 from ..envs.tasks import SKILLS
 from ..file_lock import exclusive
 from ..rollout.episode import EVENT_FLAGS, EpisodeData
-from .depth import DEPTH_ENCODING
 from .features import (
     ANNOTATION_SKILL,
     FPS,

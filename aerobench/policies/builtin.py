@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import torch
 
+from .. import tiers
 from ..expert import ExpertController
 from .registry import register_policy
 
@@ -13,6 +14,7 @@ class ExpertPolicy:
     """The privileged hybrid expert (reads simulator state, not the observation)."""
 
     name = "expert"
+    input_tier = staticmethod(lambda checkpoint=None: tiers.PRIVILEGED.name)  # it acts on the simulator's state
 
     def __init__(self, env, checkpoint: str | None = None, **_):
         if checkpoint:
@@ -34,6 +36,7 @@ class ExpertPolicy:
 
 @register_policy("random")
 class RandomPolicy:
+    input_tier = staticmethod(lambda checkpoint=None: tiers.NO_INPUTS)  # it reads nothing
     """Uniform random actions in [-1, 1], each held for `hold` control steps (seeded)."""
 
     name = "random"

@@ -1,11 +1,13 @@
-"""What aerobench's state policies (bc, ppo) read: named fields of the proprio state and of the task state, and how
-many recent frames. A processor in LeRobot's sense: it sits between the observation and the network and is saved
-with the checkpoint, so training and acting select exactly the same values.
+"""What aerobench's learned policies (bc, ppo) read: named fields of the proprio state, of what the policy computes
+from it in its own heading frame (`egocentric`), and of the task state; whether they read the instruction; in which
+frame they act; and how many recent frames. A processor in LeRobot's sense: it sits between the observation and the
+network and is saved with the checkpoint, so training and acting select exactly the same values.
 
 Field names are those of `envs.observations` (`STATE_FIELDS`, `TASK_STATE_FIELDS`; the arm platform adds
-`arm_position` / `arm_velocity`). The default reads the whole task state and nothing of the proprio state: the task
-state already carries the flight state, and the proprio state's finger position and velocity are what a policy
-copies instead of deciding when to close (docs/experiments.md).
+`arm_position` / `arm_velocity`) and `egocentric.EGO_FIELDS`. The default reads the whole task state and nothing of
+the proprio state: the task state already carries the flight state, and the proprio state's finger position and
+velocity are what a policy copies instead of deciding when to close (docs/experiments.md). A `vision`-tier policy
+(`aerobench.tiers`) reads no task state field.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from dataclasses import asdict, dataclass
 
 import torch
 
+from .. import tiers
 from ..envs.observations import (
     ARM_STATE_FIELDS,
     STATE_FIELDS,
@@ -24,6 +27,7 @@ from ..envs.observations import (
     task_state_layout,
 )
 from ..envs.tasks import SKILLS
+from .egocentric import ACTION_FRAMES, EGO_FIELD_NAMES, ego_features
 
 ALL_TASK_FIELDS = tuple(name for name, _ in task_state_fields(with_arm=True))
 TASK_SLICES = field_slices(task_state_fields(with_arm=False))  # the arm's fields come after these: same indices
@@ -33,26 +37,37 @@ FINGER_FIELDS = ("finger_position", "finger_velocity")
 
 @dataclass(frozen=True)
 class InputSpec:
-    """`state_fields` of the proprio state and `task_fields` of the task state, in that order, per frame; `history`
-    frames (the current one first, then older ones; an episode's first frame repeats until there are enough);
-    `task_state_version`: the meaning of the task state the policy was trained on (`observations.TASK_STATE_VERSION`)."""
+    """`state_fields` of the proprio state, `ego_fields` computed from it (`egocentric`) and `task_fields` of the task
+    state, in that order, per frame; `history` frames (the current one first, then older ones; an episode's first
+    frame repeats until there are enough); `task_state_version`: the meaning of the task state the policy was trained
+    on (`observations.TASK_STATE_VERSION`); `instruction`: whether the policy reads the language instruction;
+    `action_frame`: "world" (the env's) or "heading" (`egocentric.to_world_frame` turns it for the env)."""
 
     state_fields: tuple[str, ...] = ()
     task_fields: tuple[str, ...] = ALL_TASK_FIELDS
     history: int = 1
     task_state_version: int = TASK_STATE_VERSION
+    ego_fields: tuple[str, ...] = ()
+    instruction: bool = False
+    action_frame: str = "world"
 
     def __post_init__(self):
         object.__setattr__(self, "state_fields", tuple(self.state_fields))
         object.__setattr__(self, "task_fields", tuple(self.task_fields))
+        object.__setattr__(self, "ego_fields", tuple(self.ego_fields))
+        bad = [f for f in self.ego_fields if f not in EGO_FIELD_NAMES]
+        if bad:
+            raise ValueError(f"unknown egocentric fields {bad}; valid: {', '.join(EGO_FIELD_NAMES)}")
+        if self.action_frame not in ACTION_FRAMES:
+            raise ValueError(f"--action-frame must be one of {', '.join(ACTION_FRAMES)}, got {self.action_frame!r}")
         bad = [f for f in self.state_fields if f not in ALL_STATE_FIELDS]
         if bad:
             raise ValueError(f"unknown proprio state fields {bad}; valid: {', '.join(ALL_STATE_FIELDS)}")
         bad = [f for f in self.task_fields if f not in ALL_TASK_FIELDS]
         if bad:
             raise ValueError(f"unknown task state fields {bad}; valid: {', '.join(ALL_TASK_FIELDS)}")
-        if not self.state_fields and not self.task_fields:
-            raise ValueError("a state policy must read at least one state or task state field")
+        if not self.state_fields and not self.task_fields and not self.ego_fields:
+            raise ValueError("a learned policy must read at least one proprio, egocentric or task state field")
         if not (isinstance(self.history, int) and self.history >= 1):
             raise ValueError(f"--history must be a positive integer, got {self.history}")
         if not 1 <= self.task_state_version <= TASK_STATE_VERSION:
@@ -62,6 +77,17 @@ class InputSpec:
     @property
     def reads_task_state(self) -> bool:
         return bool(self.task_fields)
+
+    @property
+    def needs_start(self) -> bool:
+        """Whether a frame needs its episode's first state (`yaw_since_start`)."""
+        return "yaw_since_start" in self.ego_fields
+
+    def features(self) -> list[str]:
+        """The LeRobot feature keys these inputs read (cameras apart: the model names them), for `aerobench.tiers`."""
+        out = [tiers.STATE] if self.state_fields or self.ego_fields else []
+        out += [tiers.ENVIRONMENT_STATE] if self.task_fields else []
+        return out + ([tiers.INSTRUCTION] if self.instruction else [])
 
     @functools.lru_cache(maxsize=8)  # noqa: B019 - a few frozen specs per process; read once per control step
     def _indices(self, with_arm: bool, task_width: int | None) -> tuple[torch.Tensor, torch.Tensor]:
@@ -80,12 +106,15 @@ class InputSpec:
 
         return gather(state, self.state_fields), gather(task, self.task_fields)
 
-    def frame(self, state: torch.Tensor, task_state: torch.Tensor | None) -> torch.Tensor:
-        """One frame's inputs `(T, F)` from proprio states `(T, S)` and task states `(T, K)` (the platform follows
-        from the proprio size)."""
+    def frame(self, state: torch.Tensor, task_state: torch.Tensor | None,
+              start_state: torch.Tensor | None = None) -> torch.Tensor:
+        """One frame's inputs `(T, F)` from proprio states `(T, S)`, task states `(T, K)` (the platform follows from
+        the proprio size) and, for `yaw_since_start`, each row's episode (or stage) first state `(T, S)`."""
         with_arm = state.shape[-1] > sum(n for _, n in STATE_FIELDS)
         si, ti = self._indices(with_arm, task_state.shape[-1] if task_state is not None else None)
         parts = [state.float()[..., si]]
+        if self.ego_fields:
+            parts.append(ego_features(state, start_state, self.ego_fields))
         if self.task_fields:
             if task_state is None:
                 raise ValueError("this policy reads the task state (observation.environment_state) but none was given")

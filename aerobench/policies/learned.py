@@ -1,9 +1,9 @@
 """Networks and checkpoints shared by `aerobench train bc` and `aerobench train ppo`, and the `bc` / `ppo` policies.
 
 One actor serves both algorithms, so a BC checkpoint initialises the PPO actor as is. The actor maps the normalized
-inputs its `InputSpec` selects (`inputs.py`: task state fields by default, optionally proprio fields and a short
-history; plus, in the image variant, features of the three RGB-D cameras) to a *normalized* flight (and arm)
-action and, last, the gripper: with the default `gripper: "binary"` a logit (> 0: close), because the gripper is
+inputs its `InputSpec` selects (`inputs.py`: task state fields by default, optionally proprio fields, what the policy
+computes from them in its heading frame, the instruction and a short history; plus, in the image variant, features
+of RGB-D cameras, `camera_input.py`) to a *normalized* flight (and arm) action and, last, the gripper: with the default `gripper: "binary"` a logit (> 0: close), because the gripper is
 an open/close command (the expert only ever sends -1 or +1), so `act` sends -1 or +1; with `"continuous"` a
 regressed value like the other dimensions. `act` unnormalizes with the checkpoint's statistics and clamps to [-1, 1].
 
@@ -15,8 +15,9 @@ A checkpoint folder holds (`CHECKPOINT_FILES`):
     starts.json          the episode starts of the training data (`provenance`), for the held-out check
     train_state.pt       optimizer state, step counters and RNG states, for resuming (not needed to act)
 
-Image inputs: per camera, RGB in [0, 1] and depth in metres / `DEPTH_SCALE_M` stacked into 4 channels and reduced
-to `image_size` pixels (area for RGB; nearest for depth so that "no return" zeros do not blur into real depths).
+Image inputs: per camera, RGB and depth (2 cm levels) reduced to `image_size` pixels (`camera_input`). A policy
+reads a tier of inputs (`aerobench.tiers`): `privileged` if any task state field, else `vision`; a blind control
+(`model["blind"]`) is the same network with its cameras blanked, at training and at acting.
 """
 
 from __future__ import annotations
@@ -27,9 +28,12 @@ from pathlib import Path
 
 import torch
 from torch import nn
-from torch.nn import functional as F
 
-from .inputs import FrameHistory, InputSpec
+from .. import tiers
+from .camera_input import IMAGE_CHANNELS
+from .inputs import InputSpec
+from .instruction import BUCKETS
+from .observer import ActorObserver
 from .provenance import TrainingStarts, read_starts, write_starts
 from .registry import register_policy
 
@@ -42,43 +46,13 @@ CHECKPOINT_FILES = (CONFIG_FILE, WEIGHTS_FILE, NORMALIZATION_FILE)
 CHECKPOINT_SUBDIR = "checkpoint"  # a training run's OUT/checkpoint
 ALGORITHMS = ("bc", "ppo")
 CAMERAS = ("drone_front", "drone_hand", "drone_own")
-DEPTH_SCALE_M = 5.0  # indoor scenes: depths of a few metres map to O(1) inputs
-MM_PER_M = 1000.0
-IMAGE_CHANNELS = 4  # RGB + depth
+CAMERA_ENCODERS = ("shared", "separate")  # one CNN for every camera, or one per camera
 STD_FLOOR = 1e-2  # a constant dimension (e.g. an always-open gripper command) must not divide by ~0
 UINT8_MAX = 255.0
 GRIPPER_MODES = ("binary", "continuous")
 
 
 # ── inputs ────────────────────────────────────────────────────────────────────────────────────────────────────────
-
-
-def decode_packed_depth(packed: torch.Tensor) -> torch.Tensor:
-    """The export's packed depth as LeRobot returns it (float `(..., 3, H, W)` in [0, 1], R high byte, G low byte;
-    `aerobench.export.depth`) -> millimetres `(..., H, W)` float."""
-    high = torch.round(packed[..., 0, :, :] * UINT8_MAX)
-    low = torch.round(packed[..., 1, :, :] * UINT8_MAX)
-    return high * 256.0 + low
-
-
-def camera_input(rgb: torch.Tensor, depth_mm: torch.Tensor, size: int) -> torch.Tensor:
-    """RGB `(N, 3, H, W)` in [0, 1] and depth `(N, H, W)` in mm -> the encoder's `(N, 4, size, size)` input."""
-    rgb = rgb.float()
-    depth = (depth_mm.float() / MM_PER_M / DEPTH_SCALE_M)[:, None]
-    if rgb.shape[-1] != size:
-        rgb = F.interpolate(rgb, size=(size, size), mode="area")
-        depth = F.interpolate(depth, size=(size, size), mode="nearest")
-    return torch.cat([rgb, depth], dim=1)
-
-
-def camera_inputs(obs: dict, cameras: tuple[str, ...], image_size: int) -> dict[str, torch.Tensor]:
-    """Per camera, the encoder's `(N, 4, s, s)` input from an aerobench env observation."""
-    out = {}
-    for cam in cameras:
-        data = obs["sensor_data"][cam]
-        rgb = data["rgb"].permute(0, 3, 1, 2).float() / UINT8_MAX
-        out[cam] = camera_input(rgb, data["depth"][..., 0].float().clamp_min(0), image_size)
-    return out
 
 
 def is_close(gripper: torch.Tensor) -> torch.Tensor:
@@ -111,7 +85,7 @@ def mlp(sizes: list[int], out_gain: float = 1.0) -> nn.Sequential:
 
 
 class CameraEncoder(nn.Module):
-    """A small CNN shared by the cameras; each camera's features keep their slot in the concatenation."""
+    """A small CNN: stride-2 3x3 convolutions, then a linear layer to `feature_dim` features."""
 
     def __init__(self, image_size: int, channels: tuple[int, ...], feature_dim: int):
         super().__init__()
@@ -128,23 +102,43 @@ class CameraEncoder(nn.Module):
 
 
 class Trunk(nn.Module):
-    """Normalized state (+ camera features) -> an MLP's output; the actor and the critic are each one of these."""
+    """Normalized state (+ camera features, + the instruction's embedding) -> an MLP's output; the actor and the
+    critic are each one of these. Inputs: "state" `(N, S)`, one float `(N, 4, s, s)` image per camera (absent for a
+    blind control: its cameras read zeros) and "instruction" word ids `(N, W)` (`instruction.py`)."""
 
     def __init__(self, model: dict, out_dim: int, out_gain: float):
         super().__init__()
         self.cameras = tuple(model["cameras"])
+        self.blind, self.image_size = bool(model.get("blind", False)), model["image_size"]
+        self.separate = model.get("camera_encoder", "shared") == "separate"
         in_dim = model["state_dim"]
         if self.cameras:
-            self.encoder = CameraEncoder(model["image_size"], tuple(model["cnn_channels"]), model["feature_dim"])
+            def encoder() -> CameraEncoder:
+                return CameraEncoder(model["image_size"], tuple(model["cnn_channels"]), model["feature_dim"])
+
+            if self.separate:
+                self.encoders = nn.ModuleDict({c: encoder() for c in self.cameras})
+            else:
+                self.encoder = encoder()
             in_dim += model["feature_dim"] * len(self.cameras)
+        self.instruction_dim = int(model.get("instruction_dim", 0))
+        if self.instruction_dim:
+            self.words = nn.EmbeddingBag(BUCKETS, self.instruction_dim, mode="mean", padding_idx=0)
+            in_dim += self.instruction_dim
         self.mlp = mlp([in_dim, *model["hidden"], out_dim], out_gain)
 
     def forward(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
         parts = [inputs["state"]]
+        n = inputs["state"].shape[0]
         if self.cameras:
-            n = inputs["state"].shape[0]
-            stacked = torch.cat([inputs[c] for c in self.cameras], 0)  # one encoder pass for all cameras
-            parts += list(self.encoder(stacked).split(n, 0))
+            shape = (n, IMAGE_CHANNELS, self.image_size, self.image_size)
+            images = [inputs[c] if not self.blind else inputs["state"].new_zeros(shape) for c in self.cameras]
+            if self.separate:
+                parts += [self.encoders[c](x) for c, x in zip(self.cameras, images)]
+            else:  # one encoder pass for all cameras; each camera's features keep their slot
+                parts += list(self.encoder(torch.cat(images, 0)).split(n, 0))
+        if self.instruction_dim:
+            parts.append(self.words(inputs["instruction"]))
         return self.mlp(torch.cat(parts, -1))
 
 
@@ -158,9 +152,10 @@ def make_critic(model: dict) -> Trunk:
 
 def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs: InputSpec,
                cameras: tuple[str, ...] = (), image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32),
-               feature_dim: int = 64, gripper: str = "binary") -> dict:
+               feature_dim: int = 64, gripper: str = "binary", blind: bool = False, camera_encoder: str = "shared",
+               instruction_dim: int = 0) -> dict:
     """The JSON description of the networks a checkpoint holds (enough to rebuild them). `state_dim` counts the
-    selected input values of all history frames."""
+    selected input values of all history frames; `instruction_dim` > 0 embeds the instruction (`inputs.instruction`)."""
     unknown = [c for c in cameras if c not in CAMERAS]
     if unknown:
         raise ValueError(f"unknown cameras {unknown}; valid: {', '.join(CAMERAS)}")
@@ -168,9 +163,28 @@ def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs:
         raise ValueError(f"image_size {image_size} must be divisible by {2 ** len(cnn_channels)}")
     if gripper not in GRIPPER_MODES:
         raise ValueError(f"unknown gripper head {gripper!r}; valid: {', '.join(GRIPPER_MODES)}")
+    if camera_encoder not in CAMERA_ENCODERS:
+        raise ValueError(f"--camera-encoder must be one of {', '.join(CAMERA_ENCODERS)}, got {camera_encoder!r}")
+    if blind and not cameras:
+        raise ValueError("a blind control blanks the cameras of a camera policy: give it cameras")
+    if inputs.instruction != (instruction_dim > 0):
+        raise ValueError("the instruction is read with an embedding: instruction_dim > 0 exactly when inputs read it")
     return {"state_dim": state_dim, "action_dim": action_dim, "hidden": list(hidden), "cameras": list(cameras),
             "image_size": image_size, "cnn_channels": list(cnn_channels), "feature_dim": feature_dim,
-            "inputs": inputs.as_dict(), "gripper": gripper}
+            "inputs": inputs.as_dict(), "gripper": gripper, "blind": blind, "camera_encoder": camera_encoder,
+            "instruction_dim": instruction_dim}
+
+
+def model_features(model: dict) -> list[str]:
+    """The LeRobot feature keys a checkpoint's model reads (a blind control's cameras are not read)."""
+    cameras = [] if model.get("blind") else model["cameras"]
+    return InputSpec.from_dict(model["inputs"]).features() + [f"{prefix}{c}" for c in cameras
+                                                              for prefix in (tiers.IMAGES, tiers.DEPTH)]
+
+
+def model_tier(model: dict) -> str:
+    """The input tier (`aerobench.tiers`) of a checkpoint's model."""
+    return tiers.tier_of(model_features(model))
 
 
 class Normalizer(nn.Module):
@@ -321,9 +335,8 @@ class LearnedPolicy:
         path, _ = self.checked_config(checkpoint)
         config, self.actor, self.normalizer = _cached_actor(path, (path / WEIGHTS_FILE).stat().st_mtime_ns)
         model = config["model"]
-        self.cameras, self.image_size, self.gripper = tuple(model["cameras"]), model["image_size"], model["gripper"]
-        self.inputs = InputSpec.from_dict(model["inputs"])
-        self.history = FrameHistory(self.inputs.history)
+        self.gripper = model["gripper"]
+        self.observer = ActorObserver(model)
         self.device = env.device
         self.path, self.state_dim = path, model["state_dim"]
         self.env = env
@@ -342,8 +355,19 @@ class LearnedPolicy:
 
     @classmethod
     def needs_images(cls, checkpoint: str | None) -> bool:
-        """Whether the actor reads the cameras; also the early check of the checkpoint (before any env is built)."""
-        return bool(cls.checked_config(checkpoint)[1]["model"]["cameras"])
+        """Whether the actor reads the cameras (a blind control does not); also the early check of the checkpoint
+        (before any env is built)."""
+        model = cls.checked_config(checkpoint)[1]["model"]
+        return bool(model["cameras"]) and not model.get("blind", False)
+
+    @classmethod
+    def input_tier(cls, checkpoint: str | None) -> str:
+        """The checkpoint's input tier (`aerobench.tiers`), from what its model reads."""
+        return model_tier(cls.checked_config(checkpoint)[1]["model"])
+
+    @classmethod
+    def input_features(cls, checkpoint: str | None) -> list[str]:
+        return model_features(cls.checked_config(checkpoint)[1]["model"])
 
     @classmethod
     def training_starts(cls, checkpoint: str) -> TrainingStarts:
@@ -351,23 +375,21 @@ class LearnedPolicy:
         return read_starts(resolve_checkpoint(checkpoint, cls.algorithm))
 
     def reset(self, env_idx: torch.Tensor) -> None:
-        """Episodes restart in `env_idx`: their history frames are dropped."""
-        self.history.reset(env_idx)
+        """Episodes restart in `env_idx`: their history frames (and first states, instruction) are renewed."""
+        self.observer.reset(env_idx)
 
     def observe(self, obs) -> dict[str, torch.Tensor]:
         """The actor's (normalized) inputs for the current observation; advances the history."""
-        task_state = self.env.task_state() if self.inputs.reads_task_state else None
-        frame = self.inputs.frame(obs["agent"]["state"].cpu(), None if task_state is None else task_state.cpu())
-        state = self.history.push(frame)
-        if state.shape[-1] != self.state_dim:
+        raw = self.observer.observe(self.env, obs)
+        if raw["state"].shape[-1] != self.state_dim:
             raise ValueError(f"checkpoint {self.path} reads {self.state_dim} input values; the env gives "
-                             f"{state.shape[-1]} (train on the same platform)")
-        cams = {k: v.cpu() for k, v in camera_inputs(obs, self.cameras, self.image_size).items()}
-        return {"state": self.normalizer.state(state), **cams}
+                             f"{raw['state'].shape[-1]} (train on the same platform)")
+        return {**raw, "state": self.normalizer.state(raw["state"])}
 
     @torch.no_grad()
     def act(self, obs) -> torch.Tensor:
-        return env_action(self.actor(self.observe(obs)), self.normalizer, self.gripper).to(self.device)
+        action = env_action(self.actor(self.observe(obs)), self.normalizer, self.gripper)
+        return self.observer.to_env(action, obs).to(self.device)
 
 
 @register_policy("bc")

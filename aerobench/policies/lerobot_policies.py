@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from .. import tiers
+from ..depth import encode_depth_mm
 from ..envs.observations import task_state_in_layout
-from ..export.depth import encode_depth_mm
 from .provenance import STARTS_FILE, TrainingStarts, dataset_starts, read_starts, recorded_path
 from .registry import register_policy
 
@@ -26,6 +27,7 @@ REQUIRED_FILES = ("config.json", "model.safetensors")
 PROCESSOR_FILES = ("policy_preprocessor.json", "policy_postprocessor.json")
 # aerobench policy name -> the LeRobot config types its checkpoints may hold (the tiny pi variants: pi_tiny/)
 LEROBOT_TYPES = {"act": ("act",), "diffusion": ("diffusion",), "pi0": ("pi0", "pi0_tiny"), "pi05": ("pi05", "pi05_tiny")}
+READS_LANGUAGE = ("pi0", "pi05")  # the VLAs tokenize the instruction; ACT and Diffusion Policy do not read it
 
 
 def resolve_checkpoint(checkpoint: str | None, policy: str) -> Path:
@@ -118,6 +120,17 @@ class LeRobotPolicy:
     def needs_images(cls, checkpoint: str | None) -> bool:
         config = _load_config(resolve_checkpoint(checkpoint, cls.kind), cls.kind)
         return any(k.startswith(("observation.images.", "observation.depth.")) for k in config.input_features)
+
+    @classmethod
+    def input_features(cls, checkpoint: str | None) -> list[str]:
+        """The feature keys the checkpoint's model reads (`aerobench.tiers`): its input features, and the instruction
+        for the VLAs."""
+        config = _load_config(resolve_checkpoint(checkpoint, cls.kind), cls.kind)
+        return list(config.input_features) + ([tiers.INSTRUCTION] if cls.kind in READS_LANGUAGE else [])
+
+    @classmethod
+    def input_tier(cls, checkpoint: str | None) -> str:
+        return tiers.tier_of(cls.input_features(checkpoint))
 
     @classmethod
     def training_starts(cls, checkpoint: str) -> TrainingStarts:

@@ -56,3 +56,28 @@ def policy_training_starts(name: str, checkpoint: str | None):
     factory = POLICIES.get(name)
     starts = getattr(factory, "training_starts", None)
     return starts(checkpoint) if callable(starts) and checkpoint else TrainingStarts()
+
+
+def policy_input_tier(name: str, checkpoints: list[str | None]) -> str:
+    """The input tier (`aerobench.tiers`) of policy `name` with these checkpoints (one per skill stage): the widest
+    of theirs (a row whose Pick is `vision` and whose Place is `privileged` is a `privileged` row)."""
+    from .. import tiers
+    from . import builtin, learned, lerobot_policies  # noqa: F401
+
+    if name not in POLICIES:
+        raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
+    return tiers.widest(POLICIES[name].input_tier(c) for c in checkpoints or [None])
+
+
+def check_policy_tier(name: str, checkpoints: list[str | None], tier: str) -> None:
+    """Refuse (one line) to evaluate a policy that reads outside `tier` (`aerobench eval --inputs TIER`)."""
+    from .. import tiers
+    from . import builtin, learned, lerobot_policies  # noqa: F401
+
+    tiers.get_tier(tier)
+    for checkpoint in checkpoints or [None]:
+        features = getattr(POLICIES[name], "input_features", None)
+        if callable(features):
+            tiers.check_features(features(checkpoint), tier, f"--policy {name}" + (f" {checkpoint}" if checkpoint else ""))
+        elif POLICIES[name].input_tier(checkpoint) not in (tier, tiers.NO_INPUTS):
+            raise ValueError(f"--policy {name} reads the {POLICIES[name].input_tier(checkpoint)} tier, not {tier}")

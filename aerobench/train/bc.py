@@ -2,12 +2,19 @@
 
 Spec, "Skill Policy Learning": imitate the continuous expert actions of *successful* demonstrations by minimizing the
 mean squared error between predicted and normalized actions. The episodes come from the dataset's annotation
-(`meta/aerobench_episodes.jsonl`, outcome "S" by default). The inputs are named fields of `observation.state` and
-`observation.environment_state` (`policies.inputs.InputSpec`; default: the whole task state, no proprio field),
-optionally with a short history; the image variant adds the three RGB-D cameras (`observation.images.<cam>`,
-`observation.depth.<cam>`). The gripper is an open/close command: by default a classification head (binary
-cross-entropy on "close", with the frames where the command switches weighted up, since they are a few hundred of
-tens of thousands) beside the MSE of the continuous flight (and arm) dimensions.
+(`meta/aerobench_episodes.jsonl`, outcome "S" by default). The inputs are named fields of `observation.state`, of
+what the policy computes from it in its heading frame (`policies.egocentric`) and of `observation.environment_state`
+(`policies.inputs.InputSpec`; default: the whole task state, no proprio field), optionally with a short history and
+the instruction; the image variant adds RGB-D cameras (`observation.images.<cam>`, `observation.depth.<cam>`, decoded
+once per dataset by `camera_frames`, shifted at random while training). The gripper is an open/close command: by
+default a classification head (binary cross-entropy on "close", with the frames where the command switches
+weighted up, since they are a few hundred of tens of thousands) beside the MSE of the continuous flight (and arm)
+dimensions.
+
+`--inputs vision` trains for the `vision` tier (`aerobench.tiers`): no task state field, and by default the
+egocentric proprio fields, actions in the heading frame and the instruction (docs/experiments.md, "Policies that
+see"); a field outside the tier is refused. `--blind` is a camera policy's blind control: the same network and
+training with its cameras blanked.
 
 Read top to bottom: config -> demonstrations -> normalization -> networks -> loop (log, checkpoint) -> checkpoint.
 Batches are drawn from a generator seeded by (seed, step), so a resumed run draws exactly the batches an
@@ -23,28 +30,35 @@ from pathlib import Path
 import torch
 from torch.nn import functional as F
 
+from .. import tiers
 from ..envs.observations import STATE_DIM, TASK_STATE_VERSION, task_state_field_names, task_state_fields
 from ..envs.tasks import SKILLS
 from ..export.features import VIDEO_BACKEND
 from ..export.sink import dataset_task_state_version
+from ..policies.camera_input import as_network_input, random_shift
+from ..policies.egocentric import to_heading_frame, yaw_of
 from ..policies.inputs import InputSpec
+from ..policies.instruction import instruction_tokens
 from ..policies.learned import (
+    CAMERA_ENCODERS,
     CAMERAS,
     GRIPPER_MODES,
     Normalizer,
-    camera_input,
-    decode_packed_depth,
     is_close,
     load_weights,
     make_actor,
+    model_features,
     model_spec,
+    model_tier,
     normalization_stats,
     read_config,
     recover_checkpoint,
     save_checkpoint,
 )
 from ..policies.provenance import TrainingStarts, dataset_starts
-from .common import ScalarLog, check_resumable, config_dict, load_train_state, seed_everything, torch_threads
+from ..threads import torch_threads
+from .camera_frames import camera_frames
+from .common import ScalarLog, check_resumable, config_dict, load_train_state, seed_everything
 
 OUTCOMES = ("S", "F", "T", "I")
 BATCH_SEED_STRIDE = 1_000_003  # batch generator seed = seed * stride + step: distinct streams per seed
@@ -54,6 +68,13 @@ STAGE_KEY, PHASE_KEY = "annotation.stage", "annotation.phase"
 # Options that may change when a run is resumed: the budget, the bookkeeping cadence, and `out` (a run folder may be
 # moved).
 RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads", "out")
+# What a `vision`-tier policy reads by default (`--inputs vision`): its flight state in its own heading frame, its
+# fingers, the yaw turned since the start (the place holds the heading it began with), and the instruction; it acts
+# in its heading frame (policies.egocentric). docs/experiments.md, "Policies that see", measures the choices.
+VISION_EGO_FIELDS = ("velocity_heading", "angular_velocity_body", "gravity_body_xy", "height", "yaw_since_start",
+                     "finger_position", "finger_velocity")
+ARM_EGO_FIELDS = ("arm_position", "arm_velocity")
+INSTRUCTION_DIM = 32  # the instruction's embedding width (a bag of hashed words, policies.instruction)
 
 
 @dataclass
@@ -89,6 +110,24 @@ class BCConfig:
     max_transitions: int | None = field(default=None, metadata={"help": "a data budget: train on the leading selected "
                                         "episodes, in dataset order, whose frames total at most this (default: all)"})
     image_size: int = field(default=64, metadata={"help": "camera images are reduced to this many pixels a side"})
+    inputs: str | None = field(default=None, metadata={"help": "the input tier to train for (aerobench.tiers): "
+                               "vision (cameras, proprio, instruction: no task state field, egocentric proprio and "
+                               "heading-frame actions by default) or privileged; a field outside it is refused "
+                               "(default: the tier of what the options read)"})
+    cameras: tuple[str, ...] | None = field(default=None, metadata={"help": "the cameras an image policy reads "
+                                            "(default: drone_front,drone_hand,drone_own)"})
+    ego_fields: tuple[str, ...] | None = field(default=None, metadata={"help": "proprio-derived fields in the heading "
+                                               "frame (policies.egocentric; default: none, or --inputs vision's)"})
+    action_frame: str | None = field(default=None, metadata={"help": "world (the env's) or heading (forward, left; "
+                                     "turned into the world frame when acting); default: world, or heading for "
+                                     "--inputs vision"})
+    instruction: bool | None = field(default=None, metadata={"help": "read the language instruction (default: only "
+                                     "with --inputs vision)"})
+    blind: bool = field(default=False, metadata={"help": "a blind control: the image policy's network with its "
+                        "cameras blanked, in training and when it acts"})
+    shift: int = field(default=4, metadata={"help": "random-shift augmentation of camera images, in pixels (0: off)"})
+    camera_encoder: str = field(default="shared", metadata={"help": "shared (one CNN for every camera) or separate"})
+    feature_dim: int = field(default=64, metadata={"help": "features per camera"})
     save_every: int = field(default=1_000, metadata={"help": "checkpoint every N steps (and at the end)"})
     log_every: int = field(default=50, metadata={"help": "log scalars every N steps"})
     repo_id: str = field(default="local/aerobench", metadata={"help": "LeRobot repo id of the local dataset"})
@@ -109,6 +148,24 @@ class BCConfig:
             raise ValueError(f"--skills must name skills of {', '.join(SKILLS)}, got {','.join(self.skills) or 'none'}")
         if self.gripper not in GRIPPER_MODES:
             raise ValueError(f"--gripper must be one of {', '.join(GRIPPER_MODES)}, got {self.gripper!r}")
+        if self.inputs is not None:
+            tiers.get_tier(self.inputs)
+        vision = self.inputs == "vision"
+        if self.task_fields is None and vision:
+            self.task_fields = ()
+        self.ego_fields = tuple(self.ego_fields) if self.ego_fields is not None else (VISION_EGO_FIELDS if vision else ())
+        self.action_frame = self.action_frame or ("heading" if vision else "world")
+        self.instruction = vision if self.instruction is None else self.instruction
+        self.cameras = tuple(self.cameras) if self.cameras is not None else CAMERAS
+        unknown = [c for c in self.cameras if c not in CAMERAS]
+        if unknown or not self.cameras:
+            raise ValueError(f"--cameras must name cameras of {', '.join(CAMERAS)}, got {','.join(self.cameras) or 'none'}")
+        if self.blind and not self.images:
+            raise ValueError("--blind blanks the cameras of an image policy: add --images")
+        if self.camera_encoder not in CAMERA_ENCODERS:
+            raise ValueError(f"--camera-encoder must be one of {', '.join(CAMERA_ENCODERS)}, got {self.camera_encoder!r}")
+        if self.shift < 0 or self.feature_dim < 1:
+            raise ValueError("--shift must not be negative and --feature-dim must be positive")
         if self.phase_onset_weight < 1:
             raise ValueError(f"--phase-onset-weight must be at least 1, got {self.phase_onset_weight}")
         if self.gripper_weight < 0 or self.onset_weight < 1:
@@ -125,14 +182,25 @@ class BCConfig:
             raise ValueError(f"unknown outcomes {bad}; valid: {', '.join(OUTCOMES)} (S = successful demonstrations)")
         if not self.hidden or min(self.hidden) < 1:
             raise ValueError(f"--hidden needs positive sizes, e.g. 256,256; got {self.hidden}")
-        self.input_spec(with_arm=True)  # unknown field names and a bad history fail here
+        spec = self.input_spec(with_arm=True)  # unknown field names and a bad history fail here
+        if self.inputs is not None:  # reading outside the declared tier: refused before any data is read
+            tiers.check_features(model_features(self.model(spec, 1, 1)), self.inputs, "this bc config")
 
     def input_spec(self, with_arm: bool, task_state_version: int = TASK_STATE_VERSION) -> InputSpec:
-        """What the policy reads on this platform from a task state of that version (`task_fields=None`: all of it)."""
+        """What the policy reads on this platform from a task state of that version (`task_fields=None`: all of it;
+        `--inputs vision`'s egocentric fields gain the arm's on the arm platform)."""
         layout = task_state_fields(with_arm, task_state_version)
         task = self.task_fields if self.task_fields is not None else tuple(n for n, _ in layout)
+        ego = self.ego_fields + (ARM_EGO_FIELDS if with_arm and self.ego_fields == VISION_EGO_FIELDS else ())
         return InputSpec(state_fields=self.state_fields, task_fields=task, history=self.history,
-                         task_state_version=task_state_version)
+                         task_state_version=task_state_version, ego_fields=ego, instruction=self.instruction,
+                         action_frame=self.action_frame)
+
+    def model(self, inputs: InputSpec, state_dim: int, action_dim: int) -> dict:
+        """The checkpoint's model spec for these inputs and sizes."""
+        return model_spec(state_dim, action_dim, self.hidden, inputs, self.cameras if self.images else (),
+                          self.image_size, feature_dim=self.feature_dim, gripper=self.gripper, blind=self.blind,
+                          camera_encoder=self.camera_encoder, instruction_dim=INSTRUCTION_DIM if inputs.instruction else 0)
 
 
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
@@ -170,8 +238,9 @@ def within_budget(episodes: list[int], frame_episode: torch.Tensor, max_transiti
 
 
 def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
-    """All frames of the selected episodes in memory: `state`, `action` and (image variant) one `(T, 4, s, s)`
-    float16 tensor per camera; plus facts about them (episodes, frames, robot type)."""
+    """All frames of the selected episodes in memory: `state` (the selected inputs with history), `action` (in the
+    policy's action frame), the instruction's word ids, and (image variant) one uint8 `(T, 4, s, s)` tensor per camera;
+    plus facts about them (episodes, frames, robot type)."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     root = Path(config.dataset)
@@ -181,14 +250,14 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
     if not episodes:
         raise ValueError(f"{root} has no episode with outcome {'/'.join(config.outcomes)} to train on")
     ds = LeRobotDataset(config.repo_id, root=root, video_backend=VIDEO_BACKEND)
-    if config.images:
-        missing = [c for c in CAMERAS if f"observation.images.{c}" not in ds.features]
+    if config.images and not config.blind:
+        missing = [c for c in config.cameras if f"observation.images.{c}" not in ds.features]
         if missing:
             raise ValueError(f"{root} has no camera features ({', '.join(missing)}); export with cameras or drop --images")
     with_arm = ds.features[STATE_KEY]["shape"][0] > STATE_DIM
     version = dataset_task_state_version(root)
     inputs = config.input_spec(with_arm, version)
-    columns = ["episode_index", STATE_KEY, ACTION_KEY]
+    columns = ["index", "episode_index", STATE_KEY, ACTION_KEY] + (["task_index"] if inputs.instruction else [])
     if inputs.reads_task_state:
         if TASK_STATE_KEY not in ds.features:
             raise ValueError(f"{root} has no {TASK_STATE_KEY} (exported by an older aerobench); re-export it, or "
@@ -215,10 +284,24 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
             raise ValueError(f"--max-transitions {config.max_transitions} is below the first episode's length; "
                              f"raise it or leave it out")
     chosen = torch.isin(table["episode_index"], torch.tensor(episodes)).nonzero()[:, 0]
-    segment = stage_segments(table["episode_index"], table.get(STAGE_KEY))[chosen]
-    frames = inputs.frame(table[STATE_KEY][chosen], table[TASK_STATE_KEY][chosen] if inputs.reads_task_state else None)
-    data = {"state": inputs.stack_episodes(frames, segment),
-            "action": table[ACTION_KEY][chosen].float(), "segment": segment}
+    all_segments = stage_segments(table["episode_index"], table.get(STAGE_KEY))
+    segment = all_segments[chosen]
+    state = table[STATE_KEY][chosen]
+    starts = segment_starts(all_segments)[chosen]  # each frame's stage (episode) first frame, as the policy resets
+    frames = inputs.frame(state, table[TASK_STATE_KEY][chosen] if inputs.reads_task_state else None,
+                          table[STATE_KEY][starts])
+    action = table[ACTION_KEY][chosen].float()
+    if inputs.action_frame == "heading":
+        action = to_heading_frame(action, yaw_of(state.float()))
+    data = {"state": inputs.stack_episodes(frames, segment), "action": action, "segment": segment,
+            "index": table["index"][chosen]}
+    if inputs.instruction:
+        tasks = ds.meta.tasks  # task string -> task_index
+        text = {int(i): str(task) for task, i in zip(tasks.index, tasks["task_index"])}
+        task_index = table["task_index"][chosen]
+        unique = task_index.unique()
+        tokens = instruction_tokens([text[int(i)] for i in unique])
+        data["instruction"] = tokens[torch.searchsorted(unique, task_index)]
     if PHASE_KEY in columns:
         data["phase"] = table[PHASE_KEY].reshape(-1)[chosen]
     if config.skills is not None:  # the stage's skill as the policy's own input shows it: the task state's one-hot
@@ -229,15 +312,9 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
                              f"choose skills the dataset acts")
         chosen = chosen[keep]
         data = {k: v[keep] for k, v in data.items()}
-    if config.images:
-        frames = {cam: [] for cam in CAMERAS}
-        for i in chosen.tolist():  # decoding video is the slow part; done once, kept reduced in memory
-            item = ds[i]
-            for cam in CAMERAS:
-                rgb = item[f"observation.images.{cam}"][None]
-                depth = decode_packed_depth(item[f"observation.depth.{cam}"][None])
-                frames[cam].append(camera_input(rgb, depth, config.image_size).half())
-        data.update({cam: torch.cat(frames[cam]) for cam in CAMERAS})
+    if config.images and not config.blind:  # a blind control reads no frame: its cameras are blanked
+        images = camera_frames(root, config.cameras, config.image_size)
+        data.update({cam: images[cam][data["index"]] for cam in config.cameras})
     facts = {"episodes": len(episodes), "frames": len(chosen), "robot_type": ds.meta.robot_type,
              "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames, "inputs": inputs.as_dict()}
     if config.objects is not None:
@@ -245,6 +322,14 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
     if config.skills is not None:
         facts["skills"] = list(config.skills)
     return data, facts
+
+
+def segment_starts(segment: torch.Tensor) -> torch.Tensor:
+    """The row of each row's segment's first frame (segments are contiguous, in order)."""
+    t = torch.arange(len(segment))
+    new = torch.ones(len(segment), dtype=torch.bool)
+    new[1:] = segment[1:] != segment[:-1]
+    return torch.cummax(torch.where(new, t, torch.zeros_like(t)), 0).values
 
 
 def stage_segments(episode_index: torch.Tensor, stage: torch.Tensor | None) -> torch.Tensor:
@@ -321,9 +406,9 @@ def _train_bc(config: BCConfig) -> Path:
 
     data, facts = load_demos(config)
     state_dim, action_dim = data["state"].shape[1], data["action"].shape[1]
-    cameras = CAMERAS if config.images else ()
+    cameras = config.cameras if config.images and not config.blind else ()  # the images the network is given
     inputs = InputSpec.from_dict(facts["inputs"])
-    model = model_spec(state_dim, action_dim, config.hidden, inputs, cameras, config.image_size, gripper=config.gripper)
+    model = config.model(inputs, state_dim, action_dim)
     normalizer = Normalizer(normalization_stats(data["state"], data["action"], config.gripper))
     targets = normalizer.action(data["action"])
     states = normalizer.state(data["state"])
@@ -339,7 +424,7 @@ def _train_bc(config: BCConfig) -> Path:
         actor.load_state_dict({k.removeprefix("actor."): v for k, v in load_weights(checkpoint).items()})
         optimizer.load_state_dict(train_state["optimizer"])
 
-    meta = {"algorithm": "bc", "model": model, "train": current, "data": facts,
+    meta = {"algorithm": "bc", "model": model, "train": current, "data": facts, "inputs_tier": model_tier(model),
             "platform": facts["robot_type"].removeprefix("aerobench_") if facts["robot_type"] else None}
 
     starts = demo_starts(config)
@@ -358,7 +443,10 @@ def _train_bc(config: BCConfig) -> Path:
     for step in range(start + 1, config.steps + 1):
         generator = torch.Generator().manual_seed(config.seed * BATCH_SEED_STRIDE + step)
         idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
-        batch = {"state": states[idx], **{cam: data[cam][idx].float() for cam in cameras}}
+        batch = {"state": states[idx], **{cam: random_shift(as_network_input(data[cam][idx]), config.shift, generator)
+                                          for cam in cameras}}
+        if inputs.instruction:
+            batch["instruction"] = data["instruction"][idx]
         pred = actor(batch)
         frame_weight = None if flight_weight is None else flight_weight[idx]
         if binary:  # MSE on the continuous dimensions, weighted cross-entropy on close

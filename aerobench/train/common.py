@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import json
 import random
@@ -17,18 +16,6 @@ import torch
 from ..policies.learned import TRAIN_STATE_FILE
 
 SCALARS_FILE = "scalars.jsonl"
-
-
-@contextlib.contextmanager
-def torch_threads(n: int):
-    """Run with `n` torch CPU threads, then restore. Small networks train fastest on one thread; on a loaded machine
-    more threads than free cores made BC steps ~80x slower (measured: 2 vs 165 steps/s)."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
 
 
 def seed_everything(seed: int) -> None:

@@ -49,13 +49,13 @@ from ..policies.learned import (
     save_checkpoint,
 )
 from ..policies.provenance import TrainingStarts, read_starts
+from ..threads import torch_threads
 from .common import (
     ScalarLog,
     check_resumable,
     config_dict,
     load_train_state,
     seed_everything,
-    torch_threads,
     truncate_jsonl,
 )
 from .ppo_rollout import RESET_SEED_STRIDE, ActionDistribution, Collector, Fragment, SkillEnv

@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 import torch
 from torch.distributions import Bernoulli, Normal
 
-from ..policies.inputs import FrameHistory, InputSpec
-from ..policies.learned import Normalizer, camera_inputs, env_action
+from ..policies.inputs import InputSpec
+from ..policies.learned import Normalizer, env_action
+from ..policies.observer import ActorObserver
 
 RESET_SEED_STRIDE = 1_000_003  # episode seed = seed * stride + lane + lanes * (episodes the lane started)
 MAX_RESET_TRIES = 20  # a start the env cannot place (init_failed) is re-drawn this often before giving up
@@ -184,15 +185,10 @@ def episode_outcome(success: bool, fail_cause: int, truncated: bool) -> str:
     return "truncated" if truncated else "ended"
 
 
-def input_frame(env: SkillEnv, obs: dict, inputs: InputSpec) -> torch.Tensor:
-    """One frame `(N, F)` of the actor's state inputs from the env's observation `obs` (and its task state)."""
-    task_state = env.task_state().cpu() if inputs.reads_task_state else None
-    return inputs.frame(obs["agent"]["state"].cpu(), task_state)
-
-
 def state_dim(env: SkillEnv, obs: dict, inputs: InputSpec) -> int:
     """The actor's state width for `inputs` on this env (observation `obs`)."""
-    return input_frame(env, obs, inputs).shape[-1] * inputs.history
+    observer = ActorObserver({"inputs": inputs.as_dict(), "cameras": [], "image_size": 0})
+    return observer.observe(env.env.unwrapped, obs)["state"].shape[-1]
 
 
 class Collector:
@@ -206,8 +202,7 @@ class Collector:
 
         self.env, self.inputs, self.model = env, inputs, model
         self.actor, self.critic, self.log_std, self.normalizer = actor, critic, log_std, normalizer
-        self.cameras, self.image_size = tuple(model["cameras"]), model["image_size"]
-        self.history = FrameHistory(inputs.history)
+        self.observer = ActorObserver(model)
         self.obs, self.info = obs, info
         n = env.n
         self.next_done = torch.zeros(n)
@@ -225,10 +220,7 @@ class Collector:
 
     def raw_inputs(self, keep: bool = True) -> dict[str, torch.Tensor]:
         """The actor's raw inputs for the current observation; `keep`: it enters the frame history."""
-        frame = input_frame(self.env, self.obs, self.inputs)
-        state = self.history.push(frame) if keep else self.history.peek(frame)
-        return {"state": state,
-                **{k: v.cpu() for k, v in camera_inputs(self.obs, self.cameras, self.image_size).items()}}
+        return self.observer.observe(self.env.env.unwrapped, self.obs, keep)
 
     def _normed(self, x: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         return {**x, "state": self.normalizer.state(x["state"])}
@@ -249,6 +241,7 @@ class Collector:
             with torch.no_grad():
                 value = self.critic(x)[:, 0]
             _, dist, action, sent = sample_action(self.actor, x, self.log_std, self.normalizer, self.model["gripper"])
+            sent = self.observer.to_env(sent, self.obs)
             self.obs, _, terminated, truncated, self.info = env.env.step(sent.to(device))
             r, phi, _ = reward(skill, self.info, self.prev_phi.to(device), sent.to(device), kind=env.config.reward,
                                gamma=gamma)
@@ -275,7 +268,7 @@ class Collector:
                               "peak_potential": float(self.ep_peak[i])} for i in idx.tolist()]
                 self.ep_return[done], self.ep_length[done] = 0.0, 0
                 self.obs, self.info = env.reset_some(idx)
-                self.history.reset(idx)
+                self.observer.reset(idx)
                 self.prev_phi = torch.where(done, potential(skill, self.info).cpu(), self.prev_phi)
                 self.ep_peak = torch.where(done, self.prev_phi.float(), self.ep_peak)
         stacked = {name: torch.stack([row[name] for row in rows]) for name in rows[0] if name != "inputs"}

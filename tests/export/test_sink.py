@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from aerobench.annotation.record import EpisodeRecord
+from aerobench.depth import decode_depth_mm
 from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.envs.tasks import SKILLS
 from aerobench.export import sink as sink_module
-from aerobench.export.depth import decode_depth_mm
 from aerobench.export.features import depth_key, rgb_key
 from aerobench.export.sink import (
     EPISODES_FILE,

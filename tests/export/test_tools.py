@@ -88,7 +88,7 @@ def test_filter_by_outcome_and_object(sharded_root, tmp_path):
 
 
 def test_filter_a_camera_dataset_keeps_depth_exact(tmp_path):
-    from aerobench.export.depth import decode_depth_mm
+    from aerobench.depth import decode_depth_mm
 
     root = tmp_path / "ds"
     sink = DatasetSink(root, SPEC, keep=None, part_size=8)

@@ -129,7 +129,7 @@ def test_a_chain_dataset_labels_each_frame_with_its_stages_skill(tmp_path):
     from aerobench.envs.tasks import SKILLS
     from aerobench.export import DatasetSink
     from aerobench.rollout.runner import RolloutRunner
-    from aerobench.train.common import torch_threads
+    from aerobench.threads import torch_threads
 
     out = tmp_path / "chain"
     spec = RolloutSpec(setting="PackageDelivery", skills=("deliver",), episodes=1, policy="expert",

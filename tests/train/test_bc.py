@@ -18,6 +18,7 @@ from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.inputs import InputSpec
 from aerobench.policies.learned import CHECKPOINT_FILES, load_weights, resolve_checkpoint
 from aerobench.rollout.runner import SEED_STRIDE, RolloutRunner, RolloutSpec
+from aerobench.threads import torch_threads
 from aerobench.train.bc import (
     BCConfig,
     flight_mse,
@@ -28,7 +29,7 @@ from aerobench.train.bc import (
     train_bc,
     within_budget,
 )
-from aerobench.train.common import read_scalars, torch_threads
+from aerobench.train.common import read_scalars
 from tests.cli_here import aerobench_here
 
 BIN = Path(sys.executable).parent

@@ -13,8 +13,9 @@ from aerobench.envs.checks import FailureCause
 from aerobench.export import DatasetSink, read_jsonl
 from aerobench.policies.learned import load_weights
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+from aerobench.threads import torch_threads
 from aerobench.train.bc import BCConfig, train_bc
-from aerobench.train.common import read_scalars, torch_threads
+from aerobench.train.common import read_scalars
 from aerobench.train.ppo import SUCCESS_WINDOW, PPOConfig, linear_decay, lr_factor, success_triggered, train_ppo
 from aerobench.train.rewards import RewardWeights, closeness, potential, reward
 from tests.cli_here import aerobench_here

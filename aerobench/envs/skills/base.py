@@ -46,6 +46,7 @@ from ..scenes.room_routes import RoomRoutes
 from ..signals import ENVELOPE_FLAGS, TARGET_INPUT, SharedSignals, SignalConstants, signals_kernel
 from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
 from .evaluator import SkillEvaluator
+from .markers import build_marker, place_marker
 from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
 
 RENDER_EYE_CANDIDATES = 12
@@ -165,6 +166,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             self.start_proxy_points = torch.cat([self.proxy_points, extra], 0)
         self.evaluators = self._make_evaluators()
         assert all(ev.skill in SKILLS for ev in self.evaluators)
+        # the goals only the simulator knows, shown to the cameras (visual only: the physics does not see them)
+        self.goal_markers = [(ev, build_marker(self.scene, ev.marker, f"goal_marker_{k}"))
+                             for k, ev in enumerate(self.evaluators) if ev.marker is not None]
 
     def _build_per_env(self, specs: list[ObjectSpec], name: str) -> Actor:
         def mesh(spec: ObjectSpec):
@@ -288,6 +292,8 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         commanded[env_idx] = 1.0
         self._gripper_command = commanded
         self.init_failed[env_idx] = ~self._sample_episode(env_idx)
+        for evaluator, marker in self.goal_markers:
+            place_marker(marker, evaluator.marker, *evaluator.marker_position(env_idx))
         if self.target is not None:  # where the object started: "knocked" (failure analysis) is measured from here
             if not hasattr(self, "_object_start_p") or self._object_start_p.shape[0] != n:
                 self._object_start_p = torch.zeros(n, 3, device=self.device)
@@ -557,6 +563,13 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def get_instruction(self, env: int = 0) -> str:
         return self.instructions[env]
+
+    def skill_instruction(self, env: int = 0) -> str:
+        """The instruction of the skill active in env `env`: a chain's current stage ("place the bowl on ..."), a
+        single-skill env's whole instruction (a per-skill policy's language input; one host read of the stage)."""
+        if len(self.evaluators) == 1:
+            return self.instructions[env]
+        return self.evaluators[int(self.active_evaluator_index()[env])].instruction(env)
 
     @property
     def task_description(self) -> str:

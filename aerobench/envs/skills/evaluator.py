@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import torch
 
 from ..checks import FailureCause
+from .markers import MarkerShape
 
 Flags = list[tuple[FailureCause, torch.Tensor]]
 
@@ -36,6 +37,7 @@ class GoalFeatures:
 
 class SkillEvaluator:
     skill: str = ""
+    marker: MarkerShape | None = None  # the visual-only marker that shows this skill's goal (`markers`); None: none
 
     def __init__(self, env, where: tuple[str, ...] = ()):
         self.env = env
@@ -64,6 +66,11 @@ class SkillEvaluator:
 
     def instruction(self, env: int) -> str:
         raise NotImplementedError
+
+    def marker_position(self, env_idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Where this skill's marker stands in the envs `env_idx` `(M, 3)`, and whether it is shown there `(M,)`
+        (read once the episode's goals are sampled)."""
+        raise NotImplementedError(f"{type(self).__name__} has a marker but no marker_position")
 
     def privileged_obs(self) -> dict[str, torch.Tensor]:
         """Goal information for state observations (never part of the policy-facing camera/proprio inputs)."""

@@ -11,11 +11,13 @@ from ..observations import wrap_angle
 from ..tasks import instruction
 from .base import AeroSkillEnv
 from .evaluator import GoalFeatures, SkillEvaluator
+from .markers import MarkerShape
 
 NAV_REACH_M = 0.10  # airframe centre within this distance of the target
 NAV_SETTLE_MPS = 0.05
 NAV_SETTLE_STEPS = 10
 LOST_GRASP_STEPS = 5  # carrying: this many control steps without a grasp is a dropped object
+TARGET_MARKER = MarkerShape("sphere", radius_m=0.04)  # a ball at the target, well inside the 0.10 m reach
 
 
 class NavEvaluator(SkillEvaluator):
@@ -23,12 +25,14 @@ class NavEvaluator(SkillEvaluator):
     by the chain (`set_target`, e.g. above the next placement goal). `carrying`: the drone holds the target object."""
 
     skill = "nav"
+    marker = TARGET_MARKER
 
     def __init__(self, env, where=(), carrying: bool = False):
         super().__init__(env, where)
         self.carrying = carrying
         self.target = torch.zeros(self.n, 3, device=self.device)
         self.target_names = [""] * self.n
+        self.named = self.zeros(torch.bool)  # the target is one of the layout's named nav points (its marker shows)
         self.settle_streak = self.zeros(torch.long)
         self.lost_streak = self.zeros(torch.long)
         self.heading = self.zeros()  # held from the skill's start
@@ -44,10 +48,13 @@ class NavEvaluator(SkillEvaluator):
             name = names[int(torch.randint(len(names), (1,)))]
             self.target[i] = torch.tensor(points[name], device=self.device)
             self.target_names[i] = name
+        self.named[env_idx] = ok
         return ok
 
     def set_target(self, env_idx: torch.Tensor, target: torch.Tensor, names: list[str]) -> None:
+        """A target the chain sets (e.g. above the next placement goal, whose own marker shows where it is)."""
         self.target[env_idx] = target
+        self.named[env_idx] = False
         for i, name in zip(env_idx.tolist(), names):
             self.target_names[i] = name
 
@@ -81,10 +88,14 @@ class NavEvaluator(SkillEvaluator):
         )
 
     def instruction(self, env):
-        return instruction("nav", target=self.target_names[env])
+        name = self.target_names[env]
+        return instruction("nav", target=f"the marker at {name}" if bool(self.named[env]) else name)
 
     def privileged_obs(self):
         return {"nav_target": self.target.clone()}
+
+    def marker_position(self, env_idx):
+        return self.target[env_idx], self.named[env_idx]
 
 
 @register_env("AeroNav-v1", max_episode_steps=600)

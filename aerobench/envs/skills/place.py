@@ -20,6 +20,7 @@ from ..platforms import CONTROL_HZ
 from ..tasks import instruction
 from .base import AeroSkillEnv
 from .evaluator import GoalFeatures, SkillEvaluator
+from .markers import MarkerShape
 from .starts import support_contains
 
 PLACE_ALIGN_M = 0.05  # horizontal alignment tolerance: the event t_o
@@ -33,6 +34,7 @@ PLATFORM_STABLE_MPS = 0.025  # spec: platform speed below 0.025 m/s ...
 PLATFORM_STABLE_STEPS = 20  # ... for 20 consecutive control steps
 HOVER_ABOVE_GOAL_M = 0.05  # the anchor: the tool centre point a little above its placed position
 SET_DOWN_OBSERVED_S = 1.0  # the task state's set-down time saturates here (the expert releases after 0.45 s)
+GOAL_MARKER = MarkerShape("disc", radius_m=PLACE_GOAL_RADIUS_M, thickness_m=0.002)  # the goal region, drawn on its support
 # The arm holds the object 0.24-0.48 m ahead of the airframe, so over a goal by a wall the airframe may stand in the
 # wall at the heading the place begins with (two fridge-chain places flew the airframe into it). Where the airframe
 # would stand in the scene at the release (its proxy points' clearance below PLACE_ROOM_M), the place's heading is the
@@ -58,6 +60,7 @@ def carried_arm_pose(arm, after_enclosed_pick: torch.Tensor | None, n: int, devi
 
 class PlaceEvaluator(SkillEvaluator):
     skill = "place"
+    marker = GOAL_MARKER
 
     def __init__(self, env, where=(), after_pick=None):
         super().__init__(env, where)
@@ -183,6 +186,9 @@ class PlaceEvaluator(SkillEvaluator):
 
     def privileged_obs(self):
         return {"place_goal": self.goal.clone()}
+
+    def marker_position(self, env_idx):
+        return self.goal[env_idx], torch.ones(len(env_idx), dtype=torch.bool, device=self.device)
 
 
 class PlaceUpdateLaw(NamedTuple):

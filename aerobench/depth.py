@@ -4,10 +4,14 @@ LeRobot stores an "image" feature as PNG bytes inside the data parquet, which is
 and its own depth-video path quantizes to 12 bits. aerobench keeps depth exact instead:
 
     mm = depth in millimetres, uint16 (0 = no return / beyond the camera's range)
-    R = mm >> 8,  G = mm & 255,  B = 0
+    R = mm >> 8,  G = mm & 255,  B = min(mm / 20, 255)
 
-so `mm = 256 * R + G`. LeRobot hands a decoded image back as float32 CHW in [0, 1] (= uint8 / 255);
-`decode_depth_mm` accepts that form and the raw uint8 HWC form alike.
+so `mm = 256 * R + G`. B is a coarse linear copy (20 mm a level, 0-5.1 m) for networks that read the packed image
+as a picture, as LeRobot's ACT and Diffusion Policy do with any 3-channel image feature: R is depth in 256 mm steps
+and G a sawtooth, neither a smooth depth image. Datasets written before B was added hold B = 0 (`DEPTH_ENCODING`
+names the form in meta/aerobench.json); the exact decode reads R and G only, so both forms decode alike.
+LeRobot hands a decoded image back as float32 CHW in [0, 1] (= uint8 / 255); `decode_depth_mm` accepts that form
+and the raw uint8 HWC form alike.
 """
 
 from __future__ import annotations
@@ -15,15 +19,17 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-DEPTH_CHANNELS = 3  # R = high byte, G = low byte, B = 0 (three channels so the PNG is a plain RGB image)
+DEPTH_CHANNELS = 3  # R = high byte, G = low byte, B = linear copy (three channels so the PNG is a plain RGB image)
 HIGH_BYTE_SHIFT = 8
 LOW_BYTE_MASK = 0xFF
 UINT8_MAX = 255
-DEPTH_ENCODING = "uint16 millimetres packed as R = mm >> 8, G = mm & 255, B = 0 (0 = no return)"
+LINEAR_STEP_MM = 20  # B's step: 255 levels cover 0-5.1 m, the indoor scenes' depths (farther reads 255)
+DEPTH_ENCODING = ("uint16 millimetres packed as R = mm >> 8, G = mm & 255, B = min(mm // 20, 255) (a coarse linear "
+                  "copy for CNNs; 0 = no return)")
 
 
 def encode_depth_mm(depth_mm: np.ndarray) -> np.ndarray:
-    """`(H, W)` or `(H, W, 1)` uint16 millimetres -> `(H, W, 3)` uint8 image (R high byte, G low byte, B zero)."""
+    """`(H, W)` or `(H, W, 1)` uint16 millimetres -> `(H, W, 3)` uint8 image (R high byte, G low byte, B linear)."""
     depth = np.asarray(depth_mm)
     if depth.ndim == 3 and depth.shape[-1] == 1:
         depth = depth[..., 0]
@@ -34,6 +40,7 @@ def encode_depth_mm(depth_mm: np.ndarray) -> np.ndarray:
     packed = np.zeros((*depth.shape, DEPTH_CHANNELS), dtype=np.uint8)
     packed[..., 0] = depth >> HIGH_BYTE_SHIFT
     packed[..., 1] = depth & LOW_BYTE_MASK
+    packed[..., 2] = np.minimum(depth // LINEAR_STEP_MM, UINT8_MAX)
     return packed
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from aerobench.export.depth import decode_depth_mm, encode_depth_mm
+from aerobench.depth import decode_depth_mm, encode_depth_mm
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 MAX_MM = 10_000  # the range: within 1 mm up to 10 m
@@ -20,9 +20,19 @@ def random_depth(seed: int, shape=(128, 128)) -> np.ndarray:
 
 
 def test_packing_layout():
-    packed = encode_depth_mm(np.array([[0, 1, 256, 10_000]], dtype=np.uint16))
-    assert packed.dtype == np.uint8 and packed.shape == (1, 4, 3)
-    assert packed[0].tolist() == [[0, 0, 0], [0, 1, 0], [1, 0, 0], [39, 16, 0]]  # 10000 = 39 * 256 + 16
+    packed = encode_depth_mm(np.array([[0, 1, 256, 10_000, 1_999]], dtype=np.uint16))
+    assert packed.dtype == np.uint8 and packed.shape == (1, 5, 3)
+    # 10000 = 39 * 256 + 16; B: 20 mm a level, saturating at 255 (5.1 m)
+    assert packed[0].tolist() == [[0, 0, 0], [0, 1, 0], [1, 0, 12], [39, 16, 255], [7, 207, 99]]
+
+
+def test_the_blue_channel_is_a_linear_depth_picture_and_the_decode_ignores_it():
+    depth = random_depth(1)
+    packed = encode_depth_mm(depth)
+    assert np.array_equal(packed[..., 2], np.minimum(depth // 20, 255))
+    before_the_blue_channel = packed.copy()
+    before_the_blue_channel[..., 2] = 0  # datasets written before it hold B = 0
+    assert np.array_equal(decode_depth_mm(before_the_blue_channel), depth)
 
 
 def test_round_trip_uint8_and_lerobot_float_forms():

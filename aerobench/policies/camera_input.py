@@ -1,0 +1,63 @@
+"""The cameras as aerobench's learned policies see them: per camera a uint8 `(N, 4, s, s)` image, RGB and depth.
+
+The env renders 128x128 RGB (uint8) and depth (int16 millimetres). A policy reduces both to `s` pixels a side
+(area average for RGB; nearest for depth, so that a "no return" zero does not blur into the depths beside it) and
+quantizes depth to `DEPTH_STEP_M` (2 cm) levels, 0-5.1 m. Training reads the same uint8 images from the dataset
+(`train.camera_frames`, with the same functions), so a network sees exactly the numbers at training and at acting.
+The network gets them as floats in [0, 1] (`as_network_input`), with random shifts while it trains
+(`random_shift`, as DrQ's image augmentation).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch.nn import functional as F
+
+DEPTH_STEP_M = 0.02  # one depth level: 255 levels cover 0-5.1 m (indoor scenes); farther reads 255
+IMAGE_CHANNELS = 4  # RGB + depth
+UINT8_MAX = 255
+
+
+def reduce_rgb(rgb: torch.Tensor, size: int) -> torch.Tensor:
+    """uint8 `(N, 3, H, W)` -> uint8 `(N, 3, size, size)` (area average)."""
+    if rgb.shape[-1] == size:
+        return rgb.to(torch.uint8)
+    return F.interpolate(rgb.float(), size=(size, size), mode="area").round().clamp(0, UINT8_MAX).to(torch.uint8)
+
+
+def reduce_depth(depth_mm: torch.Tensor, size: int) -> torch.Tensor:
+    """Millimetres `(N, H, W)` -> uint8 `(N, 1, size, size)` in `DEPTH_STEP_M` levels (nearest)."""
+    d = depth_mm.float().clamp_min(0)[:, None]
+    if d.shape[-1] != size:
+        d = F.interpolate(d, size=(size, size), mode="nearest")
+    return (d / (1000.0 * DEPTH_STEP_M)).round().clamp(0, UINT8_MAX).to(torch.uint8)
+
+
+def camera_images(obs: dict, cameras: tuple[str, ...], size: int) -> dict[str, torch.Tensor]:
+    """Per camera, the policy's uint8 `(N, 4, size, size)` image from an aerobench env observation (on the CPU)."""
+    out = {}
+    for cam in cameras:
+        data = obs["sensor_data"][cam]
+        rgb = reduce_rgb(data["rgb"].permute(0, 3, 1, 2).cpu(), size)
+        out[cam] = torch.cat([rgb, reduce_depth(data["depth"][..., 0].cpu(), size)], 1)
+    return out
+
+
+def as_network_input(images: torch.Tensor) -> torch.Tensor:
+    """uint8 `(N, 4, s, s)` -> float in [0, 1] (depth: 1 = 5.1 m)."""
+    return images.float() / UINT8_MAX
+
+
+def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator) -> torch.Tensor:
+    """Each image `(N, C, s, s)` shifted by up to `pad` pixels in x and y (edges repeated): the same scene seen from a
+    slightly different place, so the network does not key on exact pixel positions (DrQ, Kostrikov et al. 2020)."""
+    if pad == 0:
+        return images
+    n, c, h, w = images.shape
+    padded = F.pad(images, (pad, pad, pad, pad), mode="replicate")
+    dy = torch.randint(0, 2 * pad + 1, (n,), generator=generator).to(images.device)
+    dx = torch.randint(0, 2 * pad + 1, (n,), generator=generator).to(images.device)
+    rows = (dy[:, None] + torch.arange(h, device=images.device))[:, None, :, None].expand(n, c, h, w + 2 * pad)
+    cropped = padded.gather(2, rows)
+    cols = (dx[:, None] + torch.arange(w, device=images.device))[:, None, None, :].expand(n, c, h, w)
+    return cropped.gather(3, cols)

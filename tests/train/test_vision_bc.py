@@ -1,0 +1,138 @@
+"""The `vision` input tier end to end on a tiny camera dataset: a camera BC trains for seconds, evaluates in its tier,
+its blind control renders nothing, and a feature outside the tier is refused at training and at evaluation."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from aerobench import tiers
+from aerobench.depth import decode_depth_mm
+from aerobench.export import DatasetSink
+from aerobench.policies.camera_input import random_shift, reduce_depth, reduce_rgb
+from aerobench.policies.egocentric import ego_features, to_heading_frame, to_world_frame, yaw_of
+from aerobench.policies.instruction import instruction_tokens
+from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+from aerobench.threads import torch_threads
+from aerobench.train.bc import BCConfig, train_bc
+from aerobench.train.camera_frames import camera_frames
+from tests.cli_here import aerobench_here
+
+pytestmark = pytest.mark.xdist_group("vision_bc")  # the module's camera dataset is made once, on one worker
+
+
+@pytest.fixture(scope="module")
+def camera_dataset(tmp_path_factory) -> Path:
+    """Two PrepareGroceries Place episodes with cameras, cut at 10 steps (truncations: plumbing, not skill)."""
+    root = tmp_path_factory.mktemp("vision") / "ds"
+    spec = RolloutSpec(setting="PrepareGroceries", skills=("place",), episodes=2, objects=("sugar_box", "bowl"),
+                       record_cameras=True, max_steps=10, seed=7)
+    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"})
+    with torch_threads(1):
+        RolloutRunner(spec, sink).run()
+    sink.close()
+    return root
+
+
+def _vision(camera_dataset: Path, out: Path, **kw) -> Path:
+    config = dict(dataset=str(camera_dataset), out=str(out), steps=3, batch_size=8, images=True, inputs="vision",
+                  outcomes=("T",), image_size=32, hidden=(32,), log_every=1, progress=False)
+    return train_bc(BCConfig(**{**config, **kw}))
+
+
+def test_a_vision_policy_trains_for_seconds_and_evaluates_in_its_tier(camera_dataset, tmp_path):
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+
+    ckpt = _vision(camera_dataset, tmp_path / "run")
+    config = json.loads((ckpt / "config.json").read_text())
+    assert config["inputs_tier"] == "vision"
+    assert config["model"]["inputs"]["task_fields"] == [] and config["model"]["inputs"]["action_frame"] == "heading"
+    with torch_threads(1):
+        results = evaluate(EvalConfig(policy="bc", setting="PrepareGroceries", skills=("place",),
+                                      objects=("sugar_box",), episodes_per_object=1, checkpoint=str(ckpt), max_steps=3,
+                                      seed=11, inputs="vision"), tmp_path / "eval")
+    assert results["inputs"] == "vision" and results["cells"][0]["n"] == 1
+
+
+def test_a_feature_outside_the_tier_is_refused_at_training_and_at_evaluation(camera_dataset, tmp_path):
+    with pytest.raises(ValueError, match="observation.environment_state, which the vision tier does not admit"):
+        BCConfig(dataset="d", out="o", inputs="vision", images=True, task_fields=("goal_pos",))
+    proc = aerobench_here("train", "bc", "--dataset", str(camera_dataset), "--out", str(tmp_path / "x"),
+                          "--inputs", "vision", "--task-fields", "goal_pos,heading_error")
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "the vision tier does not admit" in proc.stderr
+    privileged = train_bc(BCConfig(dataset=str(camera_dataset), out=str(tmp_path / "priv"), steps=2, batch_size=8,
+                                   outcomes=("T",), hidden=(16,), progress=False))
+    assert json.loads((privileged / "config.json").read_text())["inputs_tier"] == "privileged"
+    proc = aerobench_here("eval", "--policy", "bc", "--checkpoint", str(privileged), "--setting", "PrepareGroceries",
+                          "--skills", "place", "--episodes-per-object", "1", "--inputs", "vision",
+                          "--out", str(tmp_path / "e"))
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "reads observation.environment_state, which the vision tier does not admit" in proc.stderr
+    assert not (tmp_path / "e").exists()  # refused before any work
+
+
+def test_the_blind_control_is_the_same_network_with_its_cameras_blanked(camera_dataset, tmp_path):
+    from aerobench.policies import policy_needs_images
+    from aerobench.policies.learned import load_actor
+
+    seeing = _vision(camera_dataset, tmp_path / "seeing")
+    blind = _vision(camera_dataset, tmp_path / "blind", blind=True)
+    a, b = load_actor(seeing)[1], load_actor(blind)[1]
+    assert {k: v.shape for k, v in a.state_dict().items()} == {k: v.shape for k, v in b.state_dict().items()}
+    assert policy_needs_images("bc", str(seeing)) and not policy_needs_images("bc", str(blind))
+    x = {"state": torch.zeros(2, a.mlp[0].in_features - 64 * 3 - 32), "instruction": instruction_tokens(["a", "b"])}
+    cams = {c: torch.rand(2, 4, 32, 32) for c in a.cameras}
+    assert torch.equal(b({**x, **cams}), b(x))  # whatever the cameras show, a blind control sees zeros
+    assert json.loads((blind / "config.json").read_text())["inputs_tier"] == "vision"
+
+
+def test_camera_frames_are_lerobots_frames_reduced_as_the_policy_reduces_its_cameras(camera_dataset):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    frames = camera_frames(camera_dataset, ("drone_hand", "drone_own"), 32)
+    assert any((camera_dataset / ".aerobench" / "cache").glob("frames-32-*.pt"))  # the next run reads the cache
+    ds = LeRobotDataset("local/x", root=camera_dataset, video_backend="pyav")
+    for i in (0, 9, 10, 19):  # both episodes, first and last frames
+        item = ds[i]
+        for cam in ("drone_hand", "drone_own"):
+            rgb = (item[f"observation.images.{cam}"] * 255).round().to(torch.uint8)[None]
+            depth = torch.from_numpy(decode_depth_mm(item[f"observation.depth.{cam}"]).astype(np.int32))[None]
+            assert torch.equal(frames[cam][i, :3], reduce_rgb(rgb, 32)[0])
+            assert torch.equal(frames[cam][i, 3:], reduce_depth(depth, 32)[0])
+
+
+def test_actions_turn_between_the_heading_and_the_world_frame_and_back():
+    action = torch.tensor([[1.0, 0.0, 0.3, 0.1, -1.0], [0.2, -0.5, 0.0, 0.0, 1.0]])
+    yaw = torch.tensor([math.pi / 2, -0.7])
+    heading = to_heading_frame(action, yaw)
+    assert torch.allclose(heading[0, :2], torch.tensor([0.0, -1.0]), atol=1e-6)  # +x seen facing +y: to the right
+    assert torch.allclose(to_world_frame(heading, yaw), action, atol=1e-6)
+    assert torch.equal(heading[:, 2:], action[:, 2:])
+
+
+def test_egocentric_fields_read_the_proprio_state_alone():
+    state = torch.zeros(2, 19)
+    yaw = torch.tensor([0.3, 1.2])
+    state[:, 3], state[:, 4], state[:, 6], state[:, 7] = torch.cos(yaw), torch.sin(yaw), -torch.sin(yaw), torch.cos(yaw)
+    state[:, 2], state[:, 9] = 1.5, 0.4  # height, world x velocity
+    start = state.clone()
+    start[:, 3], start[:, 4] = 1.0, 0.0  # started facing +x
+    f = ego_features(state, start, ("velocity_heading", "height", "yaw_since_start"))
+    assert torch.allclose(yaw_of(state), yaw)
+    assert torch.allclose(f[:, 0], 0.4 * torch.cos(yaw), atol=1e-6) and torch.allclose(f[:, 3], torch.tensor(1.5))
+    assert torch.allclose(f[:, 4], torch.sin(yaw), atol=1e-6)
+    assert tiers.tier_of(["observation.state", "observation.images.drone_hand", "task"]) == "vision"
+
+
+def test_instruction_words_hash_the_same_in_every_process_and_a_shift_moves_pixels():
+    a, b = instruction_tokens(["pick up the sugar box", "PICK up the bowl!"])
+    assert a[:3].tolist() == b[:3].tolist() and a[3] != b[3] and a[4] != 0 and b[4] == 0
+    assert a[:5].tolist() == [1 + __import__("zlib").crc32(w.encode()) % 4095 for w in "pick up the sugar box".split()]
+    image = torch.arange(2 * 4 * 8 * 8, dtype=torch.float32).reshape(2, 4, 8, 8)
+    shifted = random_shift(image, 2, torch.Generator().manual_seed(0))
+    assert shifted.shape == image.shape and not torch.equal(shifted, image)
+    assert torch.equal(random_shift(image, 0, torch.Generator()), image)
