@@ -2,7 +2,9 @@
 
 Layout follows the spec's PrepareGroceries table: rows policy x skill, columns objects, cells "success % +- SE",
 the best policy per skill-object column in bold, and a Mean S.R. column (unweighted mean over the policy's
-skill-object pairs). Every table names the results files and the commands that produced them.
+skill-object pairs). Every row says its input tier (`aerobench.tiers`): rows are ordered by tier, and "best" is
+decided among the rows of one tier only (a `vision` row is never ranked against a `privileged` one; random, which
+reads nothing, is shown but never best). Every table names the results files and the commands that produced them.
 """
 
 from __future__ import annotations
@@ -12,9 +14,10 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
+from .. import tiers
 from ..envs.tasks import SKILLS, get_setting
 from .pooling import pool_training_runs, training_runs_text
-from .results import load_results
+from .results import DEFAULT_TIERS, UNKNOWN_TIER, load_results
 
 OBJECT_LABELS = {
     "master_chef_can": "Master Chef Can", "cracker_box": "Cracker Box", "sugar_box": "Sugar Box",
@@ -27,23 +30,31 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f}"
 
 
+def tier_of_result(result: dict) -> str:
+    """A results file's input tier; files written before the field existed: the expert's and random's, else unknown."""
+    return result.get("inputs") or DEFAULT_TIERS.get(result["policy"], UNKNOWN_TIER)
+
+
 class SettingTable:
     """One setting's grid: results (one per policy row block), the object columns and the best cells."""
 
     def __init__(self, setting: str, results: Sequence[dict]):
         self.setting = setting
-        self.results = sorted(results, key=lambda r: r["mean_sr"])  # the spec lists the strongest last
+        # grouped by input tier (vision, privileged, none), the strongest last within a tier as in the spec
+        self.results = sorted(results, key=lambda r: (tiers.tier_rank(tier_of_result(r)), r["mean_sr"]))
         order = {o: i for i, o in enumerate(get_setting(setting).objects)}
         objects = {c["object"] for r in results for c in r["cells"]}
         self.objects = sorted(objects, key=lambda o: (order.get(o, len(order)), o))
         skill_rank = {s: i for i, s in enumerate(SKILLS)}
         self.skills = sorted({c["skill"] for r in results for c in r["cells"]}, key=lambda s: (skill_rank.get(s, 99), s))
-        self.best: dict[tuple[str, str], float] = {}
-        for skill in self.skills:
-            for obj in self.objects:
-                rates = [c["success_rate"] for r in results if (c := self.cell(r, skill, obj)) is not None]
-                if len(rates) > 1 and max(rates) > 0:
-                    self.best[(skill, obj)] = max(rates)
+        self.best: dict[tuple[str, str, str], float] = {}  # (tier, skill, object) -> the tier's best rate
+        for tier in {tier_of_result(r) for r in results} - {tiers.NO_INPUTS}:  # random is never best
+            mine = [r for r in results if tier_of_result(r) == tier]
+            for skill in self.skills:
+                for obj in self.objects:
+                    rates = [c["success_rate"] for r in mine if (c := self.cell(r, skill, obj)) is not None]
+                    if len(rates) > 1 and max(rates) > 0:
+                        self.best[(tier, skill, obj)] = max(rates)
 
     @staticmethod
     def cell(result: dict, skill: str, obj: str) -> dict | None:
@@ -56,12 +67,15 @@ class SettingTable:
         present = {c["skill"] for c in result["cells"]}
         return [s for s in self.skills if s in present]
 
-    def is_best(self, skill: str, obj: str, cell: dict) -> bool:
-        return (skill, obj) in self.best and abs(cell["success_rate"] - self.best[(skill, obj)]) < 1e-12
+    def is_best(self, result: dict, skill: str, obj: str, cell: dict) -> bool:
+        """The cell is the best of its column among the rows of its result's tier."""
+        key = (tier_of_result(result), skill, obj)
+        return key in self.best and abs(cell["success_rate"] - self.best[key]) < 1e-12
 
     def is_best_mean(self, result: dict) -> bool:
-        best = max(r["mean_sr"] for r in self.results)
-        return len(self.results) > 1 and best > 0 and result["mean_sr"] == best
+        tier = tier_of_result(result)
+        mine = [r["mean_sr"] for r in self.results if tier_of_result(r) == tier]
+        return tier != tiers.NO_INPUTS and len(mine) > 1 and max(mine) > 0 and result["mean_sr"] == max(mine)
 
 
 def load_all(paths: Sequence[str | Path]) -> dict[str, list[dict]]:
@@ -82,10 +96,12 @@ def load_all(paths: Sequence[str | Path]) -> dict[str, list[dict]]:
 
 
 def render_markdown(table: SettingTable) -> str:
-    header = ["Policy", "Skill", *(OBJECT_LABELS.get(o, o) for o in table.objects), "Mean S.R."]
+    header = ["Policy", "Inputs", "Skill", *(OBJECT_LABELS.get(o, o) for o in table.objects), "Mean S.R."]
     lines = [f"## {table.setting}", "",
              "Success % ± binomial standard error per skill-object pair (n episodes each; see the results files). "
-             "Best per column in bold. Mean S.R.: unweighted mean over the policy's skill-object pairs.", "",
+             "Inputs: the policy's input tier (`vision`: cameras, proprioception, instruction; `privileged`: also the "
+             "simulator's task state; docs/evaluation.md); rows are ranked within their tier only. Best per column "
+             "and tier in bold. Mean S.R.: unweighted mean over the policy's skill-object pairs.", "",
              "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for result in table.results:
         for i, skill in enumerate(table.skills_of(result)):
@@ -93,12 +109,13 @@ def render_markdown(table: SettingTable) -> str:
             for obj in table.objects:
                 c = table.cell(result, skill, obj)
                 text = "" if c is None else f"{_pct(c['success_rate'])} ± {_pct(c['se'])}"
-                cells.append(f"**{text}**" if c is not None and table.is_best(skill, obj, c) else text)
+                cells.append(f"**{text}**" if c is not None and table.is_best(result, skill, obj, c) else text)
             mean = ""
             if i == 0:
                 mean = _pct(result["mean_sr"])
                 mean = f"**{mean}**" if table.is_best_mean(result) else mean
-            lines.append("| " + " | ".join([result["label"] if i == 0 else "", skill.capitalize(), *cells, mean]) + " |")
+            first = [result["label"], tier_of_result(result)] if i == 0 else ["", ""]
+            lines.append("| " + " | ".join([*first, skill.capitalize(), *cells, mean]) + " |")
     lines += _chain_markdown(table)
     lines += ["", "| Row | n per cell | Starts seen in training | Training runs (Mean S.R. each) | Contact solver | "
               "Results file | Command |", "|---|---|---|---|---|---|---|"]
@@ -174,9 +191,10 @@ def render_latex(table: SettingTable) -> str:
                     cells.append("--")
                     continue
                 text = f"{_pct(c['success_rate'])} \\pm {_pct(c['se'])}"
-                cells.append(rf"{{\boldmath${text}$}}" if table.is_best(skill, obj, c) else f"${text}$")
+                cells.append(rf"{{\boldmath${text}$}}" if table.is_best(result, skill, obj, c) else f"${text}$")
             last = i == len(skills) - 1
-            name = rf"\multirow{{-{len(skills)}}}{{*}}{{{_latex_escape(result['label'])}}}" if last else ""
+            label = f"{result['label']} [{tier_of_result(result)}]"
+            name = rf"\multirow{{-{len(skills)}}}{{*}}{{{_latex_escape(label)}}}" if last else ""
             mean = ""
             if last:
                 value = _pct(result["mean_sr"])
@@ -390,18 +408,19 @@ def render_html(tables: Sequence[SettingTable], video_root: Path | None = None) 
     for table in tables:
         e = html.escape
         body.append(f"<h2>{e(table.setting)}</h2>")
-        head = ["Policy", "Skill", *(OBJECT_LABELS.get(o, o) for o in table.objects), "Mean S.R."]
+        head = ["Policy", "Inputs", "Skill", *(OBJECT_LABELS.get(o, o) for o in table.objects), "Mean S.R."]
         body.append(f'<table class="sortable" data-setting="{e(table.setting)}"><thead><tr>'
                     + "".join(f"<th>{e(h)}</th>" for h in head) + "</tr></thead><tbody>")
         for result in table.results:
             for skill in table.skills_of(result):
-                row = [f"<td>{e(result['label'])}</td>", f"<td>{e(skill)}</td>"]
+                row = [f"<td>{e(result['label'])}</td>", f'<td class="inputs">{e(tier_of_result(result))}</td>',
+                       f"<td>{e(skill)}</td>"]
                 for obj in table.objects:
                     c = table.cell(result, skill, obj)
                     if c is None:
                         row.append('<td data-v="-1"></td>')
                         continue
-                    cls = ' class="best"' if table.is_best(skill, obj, c) else ""
+                    cls = ' class="best"' if table.is_best(result, skill, obj, c) else ""
                     title = f"n={c['n']}, Wilson 95% {_pct(c['wilson95'][0])}-{_pct(c['wilson95'][1])}"
                     row.append(f'<td{cls} data-v="{c["success_rate"]:.6f}" data-n="{c["n"]}" '
                                f'data-wilson="{_pct(c["wilson95"][0])}-{_pct(c["wilson95"][1])}" title="{title}">'

@@ -41,7 +41,7 @@ def _table(title: str, counts: dict[str, int]) -> list[str]:
 
 def dataset_card(root: str | Path) -> str:
     """The card's Markdown for the dataset at `root`."""
-    from .sink import read_generation_spec
+    from .sink import input_tiers, read_generation_spec
     from .tools import dataset_info
 
     root = Path(root)
@@ -105,9 +105,13 @@ def dataset_card(root: str | Path) -> str:
         "| --- | --- | --- |",
         *[f"| `{key}` | {ft['dtype']} | {'x'.join(str(n) for n in ft['shape'])} |" for key, ft in info["features"].items()],
         "",
-        "Depth is packed losslessly into RGB images (uint16 millimetres, R high byte, G low byte); every column, the "
-        "per-episode annotations (`meta/aerobench_episodes.jsonl`) and `meta/aerobench.json` are documented in "
-        "aerobench's docs/datasets.md.",
+        "Depth is packed losslessly into RGB images (uint16 millimetres, R high byte, G low byte, B a linear 20 mm "
+        "copy for CNNs); every column, the per-episode annotations (`meta/aerobench_episodes.jsonl`) and "
+        "`meta/aerobench.json` are documented in aerobench's docs/datasets.md.",
+        "",
+        "Input tiers (what a policy trained on this dataset may read; aerobench's docs/evaluation.md):",
+        "",
+        *[f"- `{name}`: {', '.join(f'`{k}`' for k in keys)}" for name, keys in input_tiers(info["features"]).items()],
         "",
         "## Load and train",
         "",
@@ -120,6 +124,8 @@ def dataset_card(root: str | Path) -> str:
         "```bash",
         f"aerobench dataset info {root}",
         f"aerobench train bc --dataset {root} --out runs/bc_{name}",
+        *([f"aerobench train bc --dataset {root} --inputs vision --images --out runs/bc_vision_{name}"]
+          if spec.get("record_cameras", True) else []),
         f"lerobot-train --config_path configs/{config}.json --dataset.root {root} "
         f"--dataset.repo_id local/{name}",
         "```",

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import tiers
 from ..annotation.record import EpisodeRecord
 from ..depth import DEPTH_ENCODING
 from ..envs.observations import TASK_STATE_VERSION
@@ -409,9 +410,18 @@ def _check_unique(rows: list[dict]) -> None:
         seen[index] = row["part"]
 
 
-def dataset_meta(spec: dict, parts: list[str]) -> dict:
-    """The content of root/meta/aerobench.json: what the integer columns and the packed depth mean."""
+def input_tiers(features: dict) -> dict[str, list[str]]:
+    """Per input tier (`aerobench.tiers`), the dataset's features a policy of that tier may read (the instruction is
+    each frame's `task`)."""
+    readable = [k for k in features if k.startswith(("observation.", "task"))] + [tiers.INSTRUCTION]
+    return {name: [k for k in readable if tier.admits_feature(k)] for name, tier in tiers.TIERS.items()}
+
+
+def dataset_meta(spec: dict, parts: list[str], features: dict | None = None) -> dict:
+    """The content of root/meta/aerobench.json: what the integer columns and the packed depth mean, and which features
+    each input tier may read."""
     return {
+        **({"input_tiers": input_tiers(features)} if features is not None else {}),
         "generation": spec,
         "skills": list(SKILLS),
         "skill_feature": ANNOTATION_SKILL,
@@ -468,7 +478,8 @@ def merge_parts(root: str | Path) -> Path | None:
             [PART_REPO_ID] * len(sources), f"local/{root.name}", roots=sources, aggr_root=work / "dataset"
         )
         merged_meta = work / "dataset" / "meta"
-        total = json.loads((merged_meta / "info.json").read_text())["total_episodes"]
+        merged_info = json.loads((merged_meta / "info.json").read_text())
+        total = merged_info["total_episodes"]
         if total != len(episode_rows):
             raise RuntimeError(f"merged {total} episodes but the parts' records list {len(episode_rows)}")
         out_rows = []
@@ -476,7 +487,8 @@ def merge_parts(root: str | Path) -> Path | None:
             row = {k: v for k, v in row.items() if k not in ("in_dataset", "part")}
             out_rows.append({**row, "dataset_episode_index": index})
         write_jsonl(merged_meta / EPISODES_FILE, out_rows)
-        _write_atomic(merged_meta / DATASET_META_FILE, json.dumps(dataset_meta(spec, names), indent=2) + "\n")
+        meta = dataset_meta(spec, names, merged_info["features"])
+        _write_atomic(merged_meta / DATASET_META_FILE, json.dumps(meta, indent=2) + "\n")
         dirs = [name for name in LEROBOT_DIRS if (work / "dataset" / name).exists()]
         _write_atomic(work / MERGE_READY, json.dumps({"dirs": dirs}))
         _swap_in(root, work)

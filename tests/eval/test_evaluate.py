@@ -156,7 +156,7 @@ def test_summarize_and_leaderboard_cli(tiny_eval, tmp_path):
     r = _cli("leaderboard", str(tmp_path / "r.json"), str(out / "results.json"), "--out", str(tmp_path / "boards"))
     assert r.returncode == 0, r.stderr
     md = (tmp_path / "boards" / "TidyHouse.md").read_text()
-    assert "| random (tiny) | Pick | 0.0 ± 0.0 | 0.0 ± 0.0 | 0.0 |" in md and "| random | Pick |" in md
+    assert "| random (tiny) | none | Pick | 0.0 ± 0.0 | 0.0 ± 0.0 | 0.0 |" in md and "| random | none | Pick |" in md
     page = Path(tmp_path / "boards" / "index.html").read_text()
     grid = page.split('<table class="sortable"')[1].split("</table>")[0]
     assert grid.count("<tr>") == 1 + 4  # one setting: a header row and 2 policies x 2 skills

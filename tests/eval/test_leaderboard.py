@@ -39,7 +39,22 @@ def test_markdown_mean_sr_and_bold(spec_results, tmp_path):
     order = [m.group(1) for m in re.finditer(r"^\| (ACT|DP|PI0|PI05) \|", md.split("| Row |")[0], re.M)]
     assert order == ["ACT", "DP", "PI0", "PI05"]
     header = next(line for line in md.splitlines() if line.startswith("| Policy"))
-    assert header.count("|") == len(OBJECTS) + 4
+    assert header.count("|") == len(OBJECTS) + 5  # policy, inputs, skill, the objects, mean
+
+
+def test_rows_are_ranked_within_their_input_tier_only(spec_results, tmp_path):
+    """A vision row is never ranked against a privileged one: each tier has its own best, random none."""
+    paths = []
+    for policy, tier in (("ACT", "vision"), ("DP", "vision"), ("PI0", "privileged"), ("PI05", "privileged")):
+        results = json.loads(next(p for p in spec_results if p.stem == policy).read_text())
+        results["inputs"] = tier
+        paths.append(write_results(tmp_path / f"{policy}.json", results))
+    build_leaderboard(paths, tmp_path / "boards")
+    md = (tmp_path / "boards" / "PrepareGroceries.md").read_text().split("| Row |")[0]
+    rows = {m.group(1): m.group(0) for m in re.finditer(r"^\| (ACT|DP|PI0|PI05) \| (\w+) \|.*$", md, re.M)}
+    assert [m.group(1) for m in re.finditer(r"^\| (ACT|DP|PI0|PI05) \|", md, re.M)] == ["ACT", "DP", "PI0", "PI05"]
+    assert rows["DP"].endswith("**33.9** |") and rows["PI05"].endswith("**44.6** |")  # the best of each tier
+    assert "| ACT | vision |" in rows["ACT"] and "| PI0 | privileged |" in rows["PI0"]
 
 
 def test_latex_layout(spec_results, tmp_path):
@@ -84,7 +99,7 @@ def test_training_runs_sharing_a_label_pool_into_one_row(tmp_path):
         paths.append(write_results(tmp_path / f"bc_seed{seed}.json", summarize(rows, provenance, label="bc")))
     build_leaderboard(paths, tmp_path / "boards")
     md = (tmp_path / "boards" / "TidyHouse.md").read_text()
-    row = next(line for line in md.splitlines() if line.startswith("| bc | Pick"))
+    row = next(line for line in md.splitlines() if line.startswith("| bc | unknown | Pick"))  # no known checkpoint
     assert "70.0 ± 8.4" in row  # 21 of 30 pooled episodes: sqrt(0.7 * 0.3 / 30) = 8.4
     notes = next(line for line in md.splitlines() if line.startswith("| bc | 30 |"))
     assert "3 runs: 80.0, 90.0, 40.0 (mean 70.0, bootstrap 95% over runs 40.0-90.0)" in notes

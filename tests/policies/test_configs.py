@@ -9,7 +9,7 @@ import pytest
 from aerobench.envs.tasks import SETTINGS, snake_name
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
-POLICIES = ("act", "diffusion", "pi0", "pi05", "act_state", "diffusion_state")
+POLICIES = ("act", "diffusion", "pi0", "pi05", "act_state", "diffusion_state", "act_cpu", "diffusion_cpu")
 
 
 def test_there_is_exactly_one_config_per_policy_and_setting():
@@ -56,3 +56,16 @@ def test_the_state_only_configs_read_the_task_state_and_no_camera(policy):
     assert config["normalization_mapping"]["ENV"] in ("MEAN_STD", "MIN_MAX")  # LeRobot leaves ENV unnormalized
     # ACT reads the task state alone; LeRobot's Diffusion Policy always conditions on observation.state as well
     assert ("observation.state" in features) == (policy == "diffusion_state")
+
+
+@pytest.mark.parametrize("policy", ["act", "diffusion", "act_cpu", "diffusion_cpu"])
+def test_the_camera_configs_are_vision_tier_and_read_depth(policy):
+    """The camera configs read the spec's VLA inputs and nothing privileged (`aerobench.tiers`), depth included: the
+    spec-scale ones the three RGB-D cameras, the CPU variants the front and hand RGB and the hand camera's depth."""
+    from aerobench import tiers
+
+    features = json.loads((CONFIGS / f"{policy}_tidy_house.json").read_text())["policy"]["input_features"]
+    assert tiers.tier_of(features) == "vision"
+    depth = {k for k in features if k.startswith("observation.depth.")}
+    assert depth == ({"observation.depth.drone_hand"} if policy.endswith("_cpu") else
+                     {f"observation.depth.{c}" for c in ("drone_front", "drone_hand", "drone_own")})
