@@ -25,16 +25,17 @@ demonstrations, 4 rounds of 200, 20k BC steps, 20 held-out starts, 60 final ones
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
-import subprocess
 import sys
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from steps import Steps, aerobench  # noqa: E402
 
 # The Open BC's inputs (docs/experiments.md: one frame, no velocity readings, the doorway and the arm).
 ARTICULATION_FIELDS = ("skill,goal_pos,goal_pos_body,tcp_to_obj_pos,heading_error,progress,is_grasp_confirmed,"
@@ -71,54 +72,6 @@ class Budget:
 
 
 FULL = dict(demos=240, rounds=4, episodes_per_round=200, bc_steps=20_000, eval_per_object=20, final_per_object=60)
-
-
-def aerobench(*args: object) -> list[str]:
-    """An `aerobench` command line, without the program name."""
-    return [str(a) for a in args]
-
-
-class Steps:
-    """Runs each named step once: a marker under out/done says it finished; its output is in out/<name>.log. A step
-    of one command runs in this process (the CLI's imports are paid once); shards run as processes at once."""
-
-    def __init__(self, out: Path):
-        self.out = out
-        (out / "done").mkdir(parents=True, exist_ok=True)
-
-    def run(self, name: str, *commands: list[str]) -> None:
-        marker = self.out / "done" / name
-        if marker.exists():
-            return
-        print(f"[dagger] {name}", flush=True)
-        logs = [self.out / f"{name}{'' if len(commands) == 1 else f'.{i}'}.log" for i in range(len(commands))]
-        for log, cmd in zip(logs, commands):
-            with open(log, "a") as f:
-                f.write("$ aerobench " + " ".join(cmd) + "\n")
-        codes = [self._in_process(commands[0], logs[0])] if len(commands) == 1 else self._processes(commands, logs)
-        failed = [str(log) for log, code in zip(logs, codes) if code != 0]
-        if failed:
-            raise SystemExit(f"[dagger] step {name} failed; see {', '.join(failed)} (rerun the command to continue)")
-        marker.write_text(json.dumps(["aerobench " + " ".join(c) for c in commands]) + "\n")
-
-    @staticmethod
-    def _in_process(cmd: list[str], log: Path) -> int:
-        from aerobench.cli import main as cli
-
-        with open(log, "a") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
-            try:
-                return cli(cmd)
-            except SystemExit as e:  # argparse's exit on a bad flag
-                return e.code if isinstance(e.code, int) else 1
-
-    @staticmethod
-    def _processes(commands: list[list[str]], logs: list[Path]) -> list[int]:
-        program = str(Path(sys.executable).with_name("aerobench"))
-        procs = []
-        for cmd, log in zip(commands, logs):
-            with open(log, "a") as f:
-                procs.append(subprocess.Popen([program, *cmd], stdout=f, stderr=subprocess.STDOUT))
-        return [p.wait() for p in procs]
 
 
 def generate(steps: Steps, b: Budget, name: str, episodes: int, seed: int, *policy_args: object) -> Path:
@@ -170,7 +123,7 @@ def summary_row(name: str, data: Path, results: dict, seed: int) -> dict:
 
 
 def run(b: Budget, out: Path) -> dict:
-    steps = Steps(out)
+    steps = Steps(out, "dagger")
     demos = generate(steps, b, "demos", b.demos, b.demo_seed, "--policy", "expert", "--action-noise", b.action_noise)
     if dataset_size(demos)[0] == 0:
         raise SystemExit(f"[dagger] the expert kept no demonstration in {demos}; nothing to train on")

@@ -38,12 +38,23 @@ def _fingerprint(root: Path, cameras: tuple[str, ...], size: int) -> str:
     return hashlib.sha256(key.encode()).hexdigest()[:16]
 
 
-def _decode_video(path: Path) -> np.ndarray:
-    """Every frame of an mp4, in order: uint8 `(N, H, W, 3)`."""
+DECODE_CHUNK = 512  # frames decoded at full size before they are reduced (a file may hold 100k frames)
+
+
+def _decode_video(path: Path, size: int) -> torch.Tensor:
+    """Every frame of an mp4, in order, reduced: uint8 `(N, 3, size, size)`."""
     import av
 
+    reduced, chunk = [], []
     with av.open(str(path)) as container:
-        return np.stack([frame.to_ndarray(format="rgb24") for frame in container.decode(video=0)])
+        for frame in container.decode(video=0):
+            chunk.append(frame.to_ndarray(format="rgb24"))
+            if len(chunk) == DECODE_CHUNK:
+                reduced.append(reduce_rgb(torch.from_numpy(np.stack(chunk)).permute(0, 3, 1, 2), size))
+                chunk = []
+    if chunk:
+        reduced.append(reduce_rgb(torch.from_numpy(np.stack(chunk)).permute(0, 3, 1, 2), size))
+    return torch.cat(reduced)
 
 
 def _episode_table(root: Path) -> list[dict]:
@@ -70,7 +81,7 @@ def decode_all(root: Path, cameras: tuple[str, ...], size: int) -> dict[str, tor
             by_file.setdefault((int(ep[f"videos/{key}/chunk_index"]), int(ep[f"videos/{key}/file_index"])), []).append(ep)
         for (chunk, file), eps in by_file.items():
             path = root / info["video_path"].format(video_key=key, chunk_index=chunk, file_index=file)
-            frames = torch.from_numpy(_decode_video(path)).permute(0, 3, 1, 2)
+            frames = _decode_video(path, size)
             for ep in eps:
                 first = int(round(float(ep[f"videos/{key}/from_timestamp"]) * fps))
                 n = int(ep["length"])
@@ -78,17 +89,17 @@ def decode_all(root: Path, cameras: tuple[str, ...], size: int) -> dict[str, tor
                     raise ValueError(f"{path} has {len(frames)} frames; episode {ep['episode_index']} needs "
                                      f"{first}-{first + n}: the dataset's videos are incomplete (re-merge it)")
                 rows = slice(int(ep["dataset_from_index"]), int(ep["dataset_to_index"]))
-                out[cam][rows, :3] = reduce_rgb(frames[first:first + n], size)
-    data_files = sorted((root / "data").rglob("*.parquet"))
+                out[cam][rows, :3] = frames[first:first + n]
     start = 0
-    for f in data_files:  # data files hold the frames in dataset order
-        table = pq.read_table(f, columns=["index", *[depth_key(c) for c in cameras]])
-        index = torch.from_numpy(table.column("index").to_numpy())
-        for cam in cameras:
-            images = table.column(depth_key(cam)).to_pylist()
-            packed = np.stack([_png(im["bytes"]) for im in images])
-            out[cam][index, 3:] = reduce_depth(torch.from_numpy(decode_depth_mm(packed).astype(np.int32)), size)
-        start += len(index)
+    for f in sorted((root / "data").rglob("*.parquet")):  # data files hold the frames in dataset order
+        batches = pq.ParquetFile(f).iter_batches(batch_size=DECODE_CHUNK, columns=["index", *map(depth_key, cameras)])
+        for batch in batches:
+            index = torch.from_numpy(batch.column("index").to_numpy())
+            for cam in cameras:
+                packed = np.stack([_png(im["bytes"]) for im in batch.column(depth_key(cam)).to_pylist()])
+                depth = torch.from_numpy(decode_depth_mm(packed).astype(np.int32))
+                out[cam][index, 3:] = reduce_depth(depth, size)
+            start += len(index)
     if start != total:
         raise ValueError(f"{root}'s data files hold {start} frames; meta/info.json says {total}")
     return out

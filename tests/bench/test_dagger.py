@@ -30,7 +30,7 @@ def test_full_sets_the_documented_run_and_flags_override_it():
 def test_a_step_runs_its_commands_once_and_a_failed_one_is_not_marked_done(tmp_path, monkeypatch):
     ran = []
     monkeypatch.setattr(dagger.Steps, "_processes", staticmethod(lambda cmds, logs: [ran.append(c) or 0 for c in cmds]))
-    steps = dagger.Steps(tmp_path)
+    steps = dagger.Steps(tmp_path, "dagger")
     steps.run("shards", ["generate", "--shard", "0/2"], ["generate", "--shard", "1/2"])
     steps.run("shards", ["generate", "--shard", "0/2"], ["generate", "--shard", "1/2"])  # done: not run again
     assert ran == [["generate", "--shard", "0/2"], ["generate", "--shard", "1/2"]]
