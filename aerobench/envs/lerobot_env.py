@@ -3,9 +3,13 @@
 `AerobenchEnvConfig` is registered in LeRobot's `EnvConfig` registry; its `task` names a skill or a chain of a task
 setting as `"<Setting>/<skill or chain>"` (e.g. `TidyHouse/pick`, `PackageDelivery/deliver`). Each LeRobot env is
 one `physx_cpu` aerobench env wrapped by `LeRobotAdapter`, which speaks LeRobot's gym contract:
-`obs = {"pixels": {camera: HWC uint8}, "agent_pos": float32 state}`, `info["is_success"]`, `task_description`.
-The feature map puts cameras at `observation.images.<camera>` and the state at `observation.state`, the same keys
-the dataset export writes. LeRobot finds this module through the `lerobot_env_aerobench` plugin distribution.
+`obs = {"pixels": {camera: HWC uint8, "<camera>_depth": packed depth HWC uint8}, "agent_pos": float32 state,
+"environment_state": float32 task state}`, `info["is_success"]`, `task_description`. The feature map puts them where
+the dataset export writes them: `observation.images.<camera>`, `observation.depth.<camera>` (LeRobot's eval loop
+names every pixel key `observation.images.<key>`; the env's preprocessor, `DepthKeys`, renames the depth ones),
+`observation.state` and `observation.environment_state`. So every checkpoint trained on an aerobench dataset finds
+the inputs it names, whatever its tier (`aerobench.tiers`): the env offers both, the policy reads what it was
+trained on. LeRobot finds this module through the `lerobot_env_aerobench` plugin distribution.
 """
 
 from __future__ import annotations
@@ -17,12 +21,18 @@ import numpy as np
 import torch
 from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
-from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
+from lerobot.processor import ObservationProcessorStep, PolicyProcessorPipeline
+from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
+from ..depth import encode_depth_mm
+from .observations import STATE_DIM, task_state_field_names
 from .platforms import get_platform
 from .tasks import DEFAULT_PLATFORM, SKILLS, get_setting
 
 CAMERAS = ("drone_front", "drone_hand", "drone_own")
+DEPTH_PIXELS = "_depth"  # a camera's packed depth among the env's pixels: "<camera>_depth"
+OBS_DEPTH = "observation.depth"  # the dataset's depth key (export.features.depth_key)
+IMAGE_SHAPE = (128, 128, 3)
 ENV_IDS = {
     "pick": "AeroPick-v1",
     "place": "AeroPlace-v1",
@@ -59,12 +69,13 @@ class LeRobotAdapter(gym.Wrapper):
         super().__init__(env)
         base = env.unwrapped
         state_dim = base.agent.get_proprioception()["state"].shape[-1]
+        task_dim = len(task_state_field_names(with_arm=base.platform.arm is not None))
+        pixels = {key: gym.spaces.Box(0, 255, IMAGE_SHAPE, dtype=np.uint8) for key in pixel_keys()}
         self.observation_space = gym.spaces.Dict(
             {
-                "pixels": gym.spaces.Dict(
-                    {c: gym.spaces.Box(0, 255, (128, 128, 3), dtype=np.uint8) for c in CAMERAS}
-                ),
+                "pixels": gym.spaces.Dict(pixels),
                 "agent_pos": gym.spaces.Box(-np.inf, np.inf, (state_dim,), dtype=np.float32),
+                "environment_state": gym.spaces.Box(-np.inf, np.inf, (task_dim,), dtype=np.float32),
             }
         )
         dim = base.platform.action_dim
@@ -75,7 +86,11 @@ class LeRobotAdapter(gym.Wrapper):
     def _convert(self, obs) -> dict:
         sensors = obs["sensor_data"]
         pixels = {c: sensors[c]["rgb"][0].cpu().numpy().astype(np.uint8) for c in CAMERAS}
-        return {"pixels": pixels, "agent_pos": obs["agent"]["state"][0].cpu().numpy().astype(np.float32)}
+        for c in CAMERAS:
+            depth = sensors[c]["depth"][0, ..., 0].cpu().numpy().clip(0, np.iinfo(np.uint16).max).astype(np.uint16)
+            pixels[c + DEPTH_PIXELS] = encode_depth_mm(depth)
+        return {"pixels": pixels, "agent_pos": obs["agent"]["state"][0].cpu().numpy().astype(np.float32),
+                "environment_state": self.env.unwrapped.task_state()[0].cpu().numpy().astype(np.float32)}
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
@@ -112,6 +127,24 @@ class LeRobotAdapter(gym.Wrapper):
     def render(self):
         frame = self.env.render()
         return frame[0].cpu().numpy() if torch.is_tensor(frame) else frame
+
+
+def pixel_keys() -> list[str]:
+    """The env's pixel keys: each camera's RGB, then each camera's packed depth."""
+    return [*CAMERAS, *(c + DEPTH_PIXELS for c in CAMERAS)]
+
+
+class DepthKeys(ObservationProcessorStep):
+    """LeRobot's eval loop names every pixel key `observation.images.<key>`; aerobench datasets (and the policies
+    trained on them) name a camera's depth `observation.depth.<camera>`. This env preprocessor step renames them."""
+
+    def observation(self, observation):
+        prefix = f"{OBS_IMAGES}."
+        return {(f"{OBS_DEPTH}.{k[len(prefix):-len(DEPTH_PIXELS)]}" if k.startswith(prefix) and k.endswith(DEPTH_PIXELS)
+                 else k): v for k, v in observation.items()}
+
+    def transform_features(self, features):
+        return features
 
 
 def make_lerobot_env(
@@ -152,17 +185,24 @@ class AerobenchEnvConfig(EnvConfig):
     def __post_init__(self):
         parse_task(self.task)
         platform = get_platform(self.platform or default_platform(self.task))
-        state_dim = 19 + (6 if platform.arm else 0)
+        with_arm = platform.arm is not None
+        state_dim = STATE_DIM + (6 if with_arm else 0)
         self.features = {
             ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(platform.action_dim,)),
             "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(state_dim,)),
-            **{f"pixels/{c}": PolicyFeature(type=FeatureType.VISUAL, shape=(128, 128, 3)) for c in CAMERAS},
+            "environment_state": PolicyFeature(type=FeatureType.ENV, shape=(len(task_state_field_names(with_arm)),)),
+            **{f"pixels/{k}": PolicyFeature(type=FeatureType.VISUAL, shape=IMAGE_SHAPE) for k in pixel_keys()},
         }
         self.features_map = {
             ACTION: ACTION,
             "agent_pos": OBS_STATE,
+            "environment_state": OBS_ENV_STATE,
             **{f"pixels/{c}": f"{OBS_IMAGES}.{c}" for c in CAMERAS},
+            **{f"pixels/{c}{DEPTH_PIXELS}": f"{OBS_DEPTH}.{c}" for c in CAMERAS},
         }
+
+    def get_env_processors(self):
+        return PolicyProcessorPipeline(steps=[DepthKeys()]), PolicyProcessorPipeline(steps=[])
 
     @property
     def gym_kwargs(self) -> dict:

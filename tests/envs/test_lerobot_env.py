@@ -23,7 +23,10 @@ def test_registered_with_lerobot_and_features():
     cfg = AerobenchEnvConfig(task="PrepareGroceries/open")
     assert cfg.features["action"].shape == (8,) and cfg.features["agent_pos"].shape == (25,)  # arm platform
     assert cfg.features_map["pixels/drone_hand"] == "observation.images.drone_hand"
+    assert cfg.features_map["pixels/drone_hand_depth"] == "observation.depth.drone_hand"
     assert cfg.features_map["agent_pos"] == "observation.state"
+    assert cfg.features_map["environment_state"] == "observation.environment_state"
+    assert cfg.features["environment_state"].shape == (34,)  # the arm's task state
     with pytest.raises(ValueError, match="unknown setting 'Mars'"):
         AerobenchEnvConfig(task="Mars/pick")
     with pytest.raises(ValueError, match="TidyHouse has no close skill"):
@@ -33,10 +36,12 @@ def test_registered_with_lerobot_and_features():
 def test_adapter_speaks_lerobots_gym_contract():
     env = make_lerobot_env("TidyHouse/pick", episode_length=5)
     obs, info = env.reset(seed=0)
-    assert set(obs["pixels"]) == set(CAMERAS)
+    assert set(obs["pixels"]) == set(CAMERAS) | {f"{c}_depth" for c in CAMERAS}
     for img in obs["pixels"].values():
         assert img.shape == (128, 128, 3) and img.dtype == np.uint8
     assert obs["agent_pos"].shape == (19,) and obs["agent_pos"].dtype == np.float32
+    assert obs["environment_state"].shape == (31,) and obs["environment_state"].dtype == np.float32
+    assert env.observation_space.contains(obs)
     assert env.task_description().startswith("pick up the ")
     assert env._max_episode_steps == 5
     obs, reward, terminated, truncated, info = env.step(np.zeros(5, dtype=np.float32))
@@ -98,3 +103,37 @@ def test_create_envs_gives_lerobots_vector_env_contract():
         assert "final_obs" in info  # same-step autoreset hands back the last observation of the finished episode
     finally:
         vec.close()
+
+
+def test_the_env_preprocessor_gives_depth_its_dataset_key():
+    """LeRobot's eval loop names every pixel key observation.images.<key>; the env's preprocessor renames the packed
+    depth to observation.depth.<camera>, the key the dataset (and a policy trained on it) uses."""
+    from lerobot.envs.utils import preprocess_observation
+
+    env = make_lerobot_env("TidyHouse/pick", episode_length=2)
+    obs, _ = env.reset(seed=1)
+    env.close()
+    batch = {k: v[None] if isinstance(v, np.ndarray) else {c: x[None] for c, x in v.items()} for k, v in obs.items()}
+    pre, _ = AerobenchEnvConfig(task="TidyHouse/pick").get_env_processors()
+    out = pre(preprocess_observation(batch))
+    assert {f"observation.depth.{c}" for c in CAMERAS} <= set(out) and "observation.images.drone_hand_depth" not in out
+    assert {"observation.environment_state", "observation.state", "observation.images.drone_hand"} <= set(out)
+    from aerobench.depth import decode_depth_mm
+
+    assert decode_depth_mm(out["observation.depth.drone_hand"][0]).max() > 0  # real millimetres, decodable
+
+
+def test_lerobot_eval_runs_a_committed_checkpoint_with_the_standard_flags_alone(tmp_path):
+    """A committed LeRobot checkpoint that reads the task state runs under `lerobot-eval` with its standard flags:
+    the env offers observation.environment_state (and depth) under the dataset's keys."""
+    root = Path(__file__).resolve().parents[2]
+    lerobot_eval = shutil.which("lerobot-eval", path=os.path.dirname(sys.executable))
+    env = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
+    result = subprocess.run(
+        [lerobot_eval, f"--policy.path={root / 'leaderboards/checkpoints/TidyHouse/act_state/place'}",
+         "--env.type=aerobench", "--env.task=TidyHouse/place", "--env.episode_length=8", "--eval.n_episodes=1",
+         "--eval.batch_size=1", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"],
+        capture_output=True, text=True, timeout=900, env=env,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "'n_episodes': 1" in result.stdout + result.stderr
