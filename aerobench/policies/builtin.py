@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from .. import tiers
@@ -36,24 +37,29 @@ class ExpertPolicy:
 
 @register_policy("random")
 class RandomPolicy:
-    input_tier = staticmethod(lambda checkpoint=None: tiers.NO_INPUTS)  # it reads nothing
-    """Uniform random actions in [-1, 1], each held for `hold` control steps (seeded)."""
+    """Uniform random actions in [-1, 1], each held for `hold` control steps, drawn from a generator seeded by the
+    episode's own seed (`seed` offsets every stream): two episodes never replay one action sequence, and an episode
+    replays its own exactly."""
 
     name = "random"
+    input_tier = staticmethod(lambda checkpoint=None: tiers.NO_INPUTS)  # it reads nothing
+    TABLE_ROWS = 1024  # held actions drawn per episode at its reset: 5120 control steps at hold 5, then they repeat
 
     def __init__(self, env, checkpoint: str | None = None, hold: int = 5, seed: int = 0, **_):
-        self.n, self.dim, self.device = env.num_envs, env.platform.action_dim, env.device
-        self.hold = hold
-        self.generator = torch.Generator().manual_seed(seed)
-        self.action = torch.zeros(self.n, self.dim)
+        self.env, self.n, self.dim, self.device = env, env.num_envs, env.platform.action_dim, env.device
+        self.hold, self.seed = hold, seed
+        self.table = torch.zeros(self.n, self.TABLE_ROWS, self.dim)
         self.age = torch.zeros(self.n, dtype=torch.long)
 
     def reset(self, env_idx):
+        seeds = np.atleast_1d(np.asarray(self.env._episode_seed)).astype(np.int64)
+        for i in env_idx.cpu().tolist():  # once per episode, at its start (not per step)
+            generator = torch.Generator().manual_seed(int(seeds[i if len(seeds) > 1 else 0]) + self.seed)
+            self.table[i] = torch.rand(self.TABLE_ROWS, self.dim, generator=generator) * 2 - 1
         self.age[env_idx.cpu()] = 0
 
     def act(self, obs):
-        fresh = self.age % self.hold == 0
-        sample = torch.rand(self.n, self.dim, generator=self.generator) * 2 - 1
-        self.action = torch.where(fresh[:, None], sample, self.action)
+        rows = (self.age // self.hold) % self.TABLE_ROWS
+        action = self.table[torch.arange(self.n), rows]
         self.age += 1
-        return self.action.to(self.device)
+        return action.to(self.device)

@@ -94,7 +94,7 @@ def decode_all(root: Path, cameras: tuple[str, ...], size: int) -> dict[str, tor
     for f in sorted((root / "data").rglob("*.parquet")):  # data files hold the frames in dataset order
         batches = pq.ParquetFile(f).iter_batches(batch_size=DECODE_CHUNK, columns=["index", *map(depth_key, cameras)])
         for batch in batches:
-            index = torch.from_numpy(batch.column("index").to_numpy())
+            index = torch.tensor(batch.column("index").to_numpy())
             for cam in cameras:
                 packed = np.stack([_png(im["bytes"]) for im in batch.column(depth_key(cam)).to_pylist()])
                 depth = torch.from_numpy(decode_depth_mm(packed).astype(np.int32))

@@ -20,7 +20,10 @@ Potentials (higher is closer to done); each is a sum of signals the skill's eval
 | open | -tcp_to_handle + handle pinched + 2 articulation_progress |
 | close | -tcp_to_handle + handle pinched + 2 (1 - articulation_progress) |
 
-Using differences of a potential keeps the shaping from changing which policy is optimal (Ng et al., 1999).
+Differences of a potential make progress hard to farm (leaving and coming back pays nothing net). This is Ng et al.'s
+(1999) shaping with gamma = 1, not their discounted form gamma * phi_t - phi_{t-1}: under PPO's discount (0.97) it
+is not guaranteed to keep the optimal policy unchanged (it penalises the discounted value of reaching a higher
+potential slightly less than the invariant form). The committed PPO rows were trained with it, so it stays as is.
 
 `kind="dense"` pays progress at every step instead, as ManiSkill's dense rewards do: the same potential with each
 distance d mapped to closeness c(d) = (1 - tanh(d / 1 m) + 1 - tanh(d / 0.1 m)) / 2 in (0, 1] (a slope far away and

@@ -1,7 +1,7 @@
 """`AeroSkillEnv`: what the five skill envs and the sequential env share.
 
 A skill env = a task setting's procedural scene (one layout per parallel env), its objects, the platform, one or
-more `SkillEvaluator`s (pick, place, nav, open/close; `evaluators.py`) and the episode sampler of its first skill.
+more `SkillEvaluator`s (pick, place, nav, open/close; the interface in `evaluator.py`) and the episode sampler of its first skill.
 Per control step the env reads the simulation once (joints, poses, contacts), computes the shared signals from those
 reads (`signals.shared_signals`, one compiled call on a CPU) into a `StepContext`, lets the active evaluator add its
 own, latches failures, and hands the payload / contact-mode switches to the flight controller.
