@@ -66,13 +66,21 @@ def _run_eval(args) -> int:
         raise UserError(str(e)) from None
     bar = progress_bar(spec)
     ray_update, ray_close = ray_progress_bar(spec) if args.ray is not None else (None, lambda: None)
+    last = {}
+
+    def on_episode(episode, progress):
+        last["progress"] = progress
+        bar(progress)
+
     try:
-        results = evaluate(config, args.out, on_episode=lambda ep, progress: bar(progress),
-                           command="aerobench " + shlex.join(sys.argv[1:]), on_progress=ray_update)
+        results = evaluate(config, args.out, on_episode=on_episode, command="aerobench " + shlex.join(sys.argv[1:]),
+                           on_progress=ray_update)
     except ValueError as e:
         raise UserError(str(e)) from None
     finally:
         ray_close()
+        if "progress" in last:
+            bar(last["progress"], final=True)  # the bar's line ends before the table
     print(format_table(results))
     print(f"wrote {Path(args.out) / 'results.json'}")
     return 0

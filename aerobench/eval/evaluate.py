@@ -159,7 +159,6 @@ def _run_spec(config: EvalConfig, spec: RolloutSpec) -> dict:
 
 
 def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int]) -> Path:
-
     with torch_threads():  # one process per core: more threads than cores slow small torch ops many-fold
         return run_shard(config, folder, shard)
 
@@ -180,12 +179,15 @@ def exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
     threading.Thread(target=watch, daemon=True, name="exit-with-parent").start()
 
 
+WORKER_POLL_S = 2.0  # how often the driver counts the workers' finished episodes for its progress bar
+
+
 def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
-    """Every shard in a worker process (spawned: SAPIEN and torch state is not fork-safe); `on_episode` hears of
-    each shard's episodes after it finished (the counts are in its records)."""
+    """Every shard in a worker process (spawned: SAPIEN and torch state is not fork-safe); `on_episode(None,
+    progress)` hears of the episodes every shard has finished, counted from their record files while they run."""
     import multiprocessing
     import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 
     k = config.workers
     out.mkdir(parents=True, exist_ok=True)
@@ -196,18 +198,29 @@ def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
     pending = [i for i in range(k) if any(plan.index not in recorded for plan in
                                           shard_plans(config.rollout_spec(record_cameras=spec.record_cameras, shard=(i, k))))]
     if pending:
+        progress = Progress(total=spec.episodes, done=len(recorded))
         with ProcessPoolExecutor(len(pending), mp_context=multiprocessing.get_context("spawn"),
                                  initializer=exit_with_parent, initargs=(os.getpid(),)) as pool:
             futures = {pool.submit(_run_shard_in_worker, config, folders[i], (i, k)): i for i in pending}
-            for future in as_completed(futures):
-                future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here
+            while futures:
+                done, _ = wait(futures, timeout=WORKER_POLL_S, return_when=FIRST_EXCEPTION)
+                for future in done:
+                    future.result()  # a worker's error (e.g. a bad checkpoint) surfaces here
+                    futures.pop(future)
+                if on_episode is not None:
+                    rows = [r for f in folders for r in (read_records(f / "records.jsonl")
+                                                         if (f / "records.jsonl").is_file() else [])]
+                    new = [r for r in rows if int(r["episode_index"]) not in recorded]
+                    if len(new) != progress.run_done or not futures:
+                        progress.done, progress.run_done = len(recorded) + len(new), len(new)
+                        progress.successes = sum(r["outcome"] == "S" for r in new)
+                        on_episode(None, progress)
     return [folder / "records.jsonl" for folder in folders]
 
 
 def _shard_task(config: EvalConfig, folder: str, shard: tuple[int, int], progress_actor) -> str:
     """One Ray task: one shard's episodes into `folder/records.jsonl`."""
     from ..rollout.ray_shards import episode_reporter
-    from ..train.common import torch_threads
 
     with torch_threads():
         return str(run_shard(config, Path(folder), shard, on_episode=episode_reporter(progress_actor)))
