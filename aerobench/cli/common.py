@@ -9,12 +9,12 @@ import os
 
 
 def quiet_offline_environment() -> None:
-    """Offline by default, nothing waits on a download prompt, and ManiSkill's start-up warnings stay quiet."""
+    """Offline by default, nothing waits on a download prompt, and the libraries' start-up noise stays quiet."""
     os.environ.setdefault("HF_HUB_OFFLINE", "1")
     os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
-    import logging
+    from ..quiet import quiet_libraries
 
-    logging.getLogger("mani_skill").setLevel(logging.ERROR)
+    quiet_libraries()
 
 
 class Parser(argparse.ArgumentParser):

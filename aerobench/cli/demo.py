@@ -57,7 +57,7 @@ def _demo_world(out: Path, args) -> list[str]:
     import imageio.v2 as imageio
 
     from ..envs.views import render_env, rollout_frames
-    from ..flight.runner import write_video
+    from ..video import write_video
 
     written = []
     for env_id, kwargs in DEMO_STARTS:

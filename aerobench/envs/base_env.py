@@ -81,6 +81,8 @@ class AerialEnv(BaseEnv):
         if "control_mode" in kwargs and kwargs["control_mode"] is not None:
             raise ValueError("aerobench envs choose their controller with controller='payload-aware'|'nominal'")
         kwargs["control_mode"] = self.controller_mode.value.replace("-", "_")
+        # SAPIEN renders on the CPU where torch sees no GPU: ManiSkill's default asks for CUDA and warns per env
+        kwargs.setdefault("render_backend", "gpu" if torch.cuda.is_available() else "cpu")
         freeze_process_heap()
         super().__init__(*args, robot_uids=AGENT_UIDS[self.platform.name], **kwargs)
 

@@ -164,12 +164,17 @@ def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int
 
 
 def exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
-    """Worker-process initializer: a daemon thread ends the worker once the process that started it is gone. A
-    driver killed mid-run (Ctrl-C twice, `kill`) otherwise leaves its workers running their shards to the end, still
-    appending episodes to the shard files that a re-run of the same command is resuming."""
+    """Worker-process initializer: quiets the libraries as the CLI does, and a daemon thread ends the worker once the
+    process that started it is gone. A driver killed mid-run (Ctrl-C twice, `kill`) otherwise leaves its workers
+    running their shards to the end, still appending episodes to the shard files that a re-run of the same command
+    is resuming."""
     import os
     import threading
     import time
+
+    from ..quiet import quiet_libraries
+
+    quiet_libraries()  # a spawned worker starts with the libraries' defaults
 
     def watch() -> None:
         while os.getppid() == parent_pid:
@@ -276,7 +281,7 @@ def _portable(path: str) -> str:
 def write_episode_video(episode: EpisodeData, path: Path, fps: int = 20) -> None:
     """The third-person view above the three onboard RGB cameras side by side (the onboard strip alone when the
     episode has no third-person frames)."""
-    from ..flight.runner import write_video
+    from ..video import write_video
 
     frames = np.concatenate([episode.frames[f"rgb/{cam}"] for cam in CAMERAS], axis=2)
     third = episode.frames.get(f"rgb/{THIRD_PERSON}")

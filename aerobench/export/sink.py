@@ -59,6 +59,9 @@ MERGE_DIR = "merge"
 MERGE_READY = "READY"
 LOCK_FILE = "merge.lock"
 LEROBOT_DIRS = ("data", "videos", "meta")
+# A merged part's LeRobot folders are freed meta first: a part without meta/info.json counts as freed, so a crash
+# mid-way never looks like a whole part; its records stay (resume reads them).
+FREE_ORDER = ("meta", "data", "videos")
 SHARD_KEY = "shard"
 PART_REPO_ID = "local/aerobench-part"
 PART_NAME = re.compile(r"^part-(\d+)-(\d+)-(\d+)$")
@@ -437,7 +440,9 @@ def merge_parts(root: str | Path) -> Path | None:
 
     Full re-merge from all parts in part order, unless parts were cleaned (`tools.clean_parts`): then the existing
     dataset is the base and only new parts are appended. Builds in root/.aerobench/merge and swaps in; a crash
-    during either step is recovered by calling this again. Returns `root`, or None when no episode was kept.
+    during either step is recovered by calling this again. Once the merged dataset is in place, the merged parts'
+    LeRobot data is freed (it would double the dataset's size on disk): later merges append new parts to the merged
+    dataset. Returns `root`, or None when no episode was kept.
     """
     from lerobot.datasets.aggregate import aggregate_datasets  # heavy import, only when merging
 
@@ -453,6 +458,7 @@ def merge_parts(root: str | Path) -> Path | None:
         names = [p.name for p in parts]
         current = read_dataset_meta(root) if (root / "meta" / "info.json").exists() else None
         if current is not None and current["parts"] == names:
+            _free_merged_parts(root, parts, names)  # a crash after the swap left some unfreed
             rebuild_records(root)
             write_dataset_card(root)
             return root  # already up to date
@@ -492,6 +498,16 @@ def merge_parts(root: str | Path) -> Path | None:
         dirs = [name for name in LEROBOT_DIRS if (work / "dataset" / name).exists()]
         _write_atomic(work / MERGE_READY, json.dumps({"dirs": dirs}))
         _swap_in(root, work)
+        _free_merged_parts(root, parts, names)
         rebuild_records(root)
         write_dataset_card(root)
     return root
+
+
+def _free_merged_parts(root: Path, parts: list[Path], merged: list[str]) -> None:
+    """Delete the LeRobot folders of the parts in the merged dataset (held under the merge lock)."""
+    for part in parts:
+        if part.name in merged:
+            for name in FREE_ORDER:
+                if (part / name).exists():
+                    shutil.rmtree(part / name)

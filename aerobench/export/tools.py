@@ -21,12 +21,12 @@ from .sink import (
     EPISODES_FILE,
     LEROBOT_DIRS,
     RECORDS_FILE,
-    _merge_lock,
     bookkeeping_dir,
     completed_parts,
     merge_parts,
     part_has_dataset,
     part_rows,
+    parts_dir,
     read_dataset_meta,
     read_jsonl,
     write_jsonl,
@@ -34,8 +34,6 @@ from .sink import (
 
 COUNT_FIELDS = ("setting", "skill", "object", "outcome", "mode")
 FILTERED_REPO_ID = "local/aerobench-source"
-# meta goes first: a part without meta/info.json counts as cleaned, so a crash mid-clean never looks like a full part.
-CLEAN_ORDER = ("meta", "data", "videos")
 
 
 def _lerobot_info(root: Path) -> dict | None:
@@ -240,7 +238,8 @@ def join_datasets(sources: Iterable[str | Path], dst_root: str | Path) -> Path:
 
 
 def merge(root: str | Path) -> Path | None:
-    """Merge whatever committed parts `root` holds (all shards) into the LeRobot dataset at `root`.
+    """Merge whatever committed parts `root` holds (all shards) into the LeRobot dataset at `root`, then free the
+    merged parts' copy of the data (`sink.merge_parts`).
 
     Call after every shard finished (`aerobench dataset merge DIR`), also after copying other machines' parts into
     root/.aerobench/parts. Re-running it is safe and finishes an interrupted merge. Returns None if no episode was
@@ -250,22 +249,9 @@ def merge(root: str | Path) -> Path | None:
 
 
 def clean_parts(root: str | Path) -> int:
-    """Merge, then delete the parts' LeRobot data (their records stay, so a resume still skips those episodes).
-
-    Returns the bytes freed. Afterwards a merge appends new parts to the merged dataset instead of re-merging.
-    """
+    """Merge (which frees the merged parts' LeRobot data; their records stay, so a resume still skips those episodes)
+    and return the bytes freed."""
     root = Path(root)
-    if merge_parts(root) is None:
-        return 0
-    freed = 0
-    with _merge_lock(root):
-        merged = set((read_dataset_meta(root) or {}).get("parts", []))
-        for part in completed_parts(root):
-            if part.name not in merged:
-                continue
-            for name in CLEAN_ORDER:
-                folder = part / name
-                if folder.exists():
-                    freed += sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
-                    shutil.rmtree(folder)
-    return freed
+    before = sum(f.stat().st_size for f in parts_dir(root).rglob("*") if f.is_file())
+    merge_parts(root)
+    return before - sum(f.stat().st_size for f in parts_dir(root).rglob("*") if f.is_file())

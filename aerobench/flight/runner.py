@@ -13,6 +13,7 @@ import torch
 from ..envs import flight_test  # noqa: F401  (registers AeroFly-v1)
 from ..envs.control.payload import ControllerMode
 from ..envs.platforms import CONTROL_HZ, MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PHYSICS_HZ, get_platform
+from ..video import write_video
 from .scenarios import Scenario, Trace, get_scenario
 
 PAYLOAD_OBJECT = "tomato_soup_can"  # the payload's shape; its mass comes from --payload-kg
@@ -143,12 +144,4 @@ def _trace(telemetry, control_t, grasped, base, payload_kg, memo) -> Trace:
     )
 
 
-def write_video(frames: list[np.ndarray], path: Path, fps: int) -> None:
-    """H.264 MP4 through imageio's bundled ffmpeg (no system FFmpeg needed)."""
-    import imageio.v2 as imageio
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    imageio.mimwrite(path, [np.asarray(f, dtype=np.uint8) for f in frames], fps=fps, macro_block_size=8)
-
-
-__all__ = ["FlightRequest", "FlightResult", "fly", "write_video"]
+__all__ = ["FlightRequest", "FlightResult", "fly"]

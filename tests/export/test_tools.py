@@ -104,13 +104,15 @@ def test_filter_a_camera_dataset_keeps_depth_exact(tmp_path):
     assert item["observation.images.drone_own"].shape == (3, 128, 128)
 
 
-def test_clean_parts_then_new_parts_are_appended(tmp_path):
+def test_a_merge_frees_the_parts_copy_and_new_parts_are_appended(tmp_path):
+    """A merged dataset keeps no second copy in its parts (it once kept half its size there): each part keeps its
+    records (a resume skips those episodes), and later parts are appended to the merged dataset."""
     root = tmp_path / "ds"
     sink = DatasetSink(root, SPEC, keep=None, part_size=2)
     for i in range(4):
         sink.write(episode(i))
     sink.close()
-    assert tools.clean_parts(root) > 0
+    assert tools.clean_parts(root) == 0  # the merge already freed them
     parts = sorted((root / ".aerobench" / "parts").iterdir())
     assert all(sorted(p.name for p in part.iterdir()) == ["aerobench_records.jsonl"] for part in parts)
     assert_aligned(root, range(4))
