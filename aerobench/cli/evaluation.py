@@ -37,6 +37,9 @@ def add_eval(sub) -> None:
     p.add_argument("--inputs", default=None, choices=("vision", "privileged"),
                    help="the input tier this evaluation is for (aerobench.tiers): a policy that reads outside it is "
                         "refused (results always record the policy's tier)")
+    p.add_argument("--blind", action="store_true",
+                   help="a blind control: the policy gets blank cameras (for a LeRobot policy trained with blanked "
+                        "images; docs/training.md); nothing is rendered")
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
     add_ray_options(p)
     p.set_defaults(func=_run_eval)
@@ -51,7 +54,7 @@ def _run_eval(args) -> int:
             episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
             seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
             dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
-            ray=args.ray, inputs=args.inputs,
+            ray=args.ray, inputs=args.inputs, blind=args.blind,
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")

@@ -50,6 +50,7 @@ class EvalConfig:
     workers: int = 1  # shards run in this many worker processes (with `ray`: this many Ray tasks; 1 = one per CPU)
     ray: str | None = None  # run the shards on Ray: "local" (this machine's cores), "auto" or a head's HOST:PORT
     inputs: str | None = None  # the input tier the evaluation is for (`aerobench.tiers`): a policy outside it is refused
+    blind: bool = False  # a blind control: blank cameras instead of rendered ones (`RolloutSpec.blind`)
 
     def __post_init__(self):
         if not (isinstance(self.workers, int) and self.workers >= 1):
@@ -67,10 +68,12 @@ class EvalConfig:
         return policy_input_tier(self.policy, checkpoints)
 
     def needs_images(self) -> bool:
-        """Whether the policy (every stage checkpoint of a chain) reads cameras; also validates name and checkpoint."""
+        """Whether the policy (every stage checkpoint of a chain) reads rendered cameras (a blind control does not);
+        also validates name and checkpoint."""
         from ..policies import policy_needs_images
 
-        return any(policy_needs_images(self.policy, c) for c in split_checkpoints(self.checkpoint).values())
+        reads = any(policy_needs_images(self.policy, c) for c in split_checkpoints(self.checkpoint).values())
+        return reads and not self.blind
 
     def rollout_spec(self, record_cameras: bool, shard: tuple[int, int] = (0, 1)) -> RolloutSpec:
         setting = get_setting(self.setting)
@@ -88,6 +91,7 @@ class EvalConfig:
             episodes=self.episodes_per_object * n_objects * len(skills), num_envs=self.num_envs, seed=self.seed,
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
             max_steps=self.max_steps, chained=bool(self.chain), shard=shard, third_person_episodes=self.video,
+            blind=self.blind,
         )
 
 
@@ -121,6 +125,7 @@ def evaluate(
         "max_steps": config.max_steps,
         "records": ",".join(str(f.relative_to(out)) for f in record_files),
         "command": command, "seen_in_training": held_out,
+        **({"blind": True} if config.blind else {}),
     }
     rows = unique_records(record_files)
     results = summarize(rows, provenance, label=config.label, inputs=tier)

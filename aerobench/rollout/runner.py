@@ -61,6 +61,10 @@ class RolloutSpec:
     # DAgger (Ross et al., 2011): `policy` flies, and each frame records this policy's action and phase instead, the
     # correction at the states the flying policy visits ("expert", the one policy that labels states it did not reach)
     labeler: str | None = None
+    # a blind control's evaluation: the cameras are not rendered and the policy is given blank (zero) images of
+    # their shape instead (a LeRobot policy trained with blanked images; aerobench's `train bc --blind` checkpoints
+    # blank their own)
+    blind: bool = False
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -104,6 +108,8 @@ class RolloutSpec:
                                  "and its --checkpoint (e.g. --policy bc --checkpoint RUN/checkpoint)")
             if self.chained:
                 raise ValueError("--label-with labels single-skill or chain rollouts, not the chained protocol's")
+        if self.blind and self.record_cameras:
+            raise ValueError("a blind evaluation renders no camera: it records none")
         if self.sim_backend == "physx_cpu" and self.num_envs != 1:
             raise ValueError("physx_cpu runs one env per process: use --shard i/k to run several processes")
 
@@ -124,6 +130,7 @@ class RolloutSpec:
             **({"rendering": self.rendering} if self.rendering != DEFAULT_RENDERING else {}),
             **({"action_noise": self.action_noise} if self.action_noise else {}),
             **({"labeler": self.labeler} if self.labeler else {}),
+            **({"blind": True} if self.blind else {}),
         }
 
 
@@ -133,6 +140,15 @@ class EpisodePlan:
     seed: int
     skill: str  # a skill or the chain's name
     object: str | None
+
+
+def blank_cameras(obs: dict, base) -> dict:
+    """`obs` with every onboard camera's RGB and depth as zeros of their rendered shape (a blind control's input)."""
+    n, out = base.num_envs, {}
+    for cam in base.platform.cameras:
+        out[cam.uid] = {"rgb": torch.zeros(n, cam.height, cam.width, 3, dtype=torch.uint8),
+                        "depth": torch.zeros(n, cam.height, cam.width, 1, dtype=torch.int16)}
+    return {**obs, "sensor_data": out}
 
 
 def plan_episodes(spec: RolloutSpec) -> list[EpisodePlan]:
@@ -277,6 +293,8 @@ class RolloutRunner:
         for _ in range(max_steps):
             if not active.any():
                 break
+            if self.spec.blind:
+                obs = blank_cameras(obs, base)
             action = policy.act(obs)
             if not torch.isfinite(action).all():
                 raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")

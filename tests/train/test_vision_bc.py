@@ -136,3 +136,22 @@ def test_instruction_words_hash_the_same_in_every_process_and_a_shift_moves_pixe
     shifted = random_shift(image, 2, torch.Generator().manual_seed(0))
     assert shifted.shape == image.shape and not torch.equal(shifted, image)
     assert torch.equal(random_shift(image, 0, torch.Generator()), image)
+
+
+def test_a_blind_evaluation_renders_nothing_and_hands_the_policy_blank_cameras(camera_dataset, tmp_path, monkeypatch):
+    """`aerobench eval --blind` (a LeRobot policy trained on blanked images): no camera is rendered, and the policy
+    reads zeros of the cameras' shape."""
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+    from aerobench.policies.learned import LearnedPolicy
+
+    ckpt = _vision(camera_dataset, tmp_path / "run")
+    seen = []
+    act = LearnedPolicy.act
+    monkeypatch.setattr(LearnedPolicy, "act", lambda self, obs: seen.append(obs["sensor_data"]) or act(self, obs))
+    config = EvalConfig(policy="bc", setting="PrepareGroceries", skills=("place",), objects=("bowl",),
+                        episodes_per_object=1, checkpoint=str(ckpt), max_steps=2, seed=11, blind=True)
+    assert not config.needs_images() and config.rollout_spec(record_cameras=False).blind
+    with torch_threads(1):
+        results = evaluate(config, tmp_path / "eval")
+    assert results["provenance"]["blind"] is True and len(seen) == 2
+    assert all(int(s[c]["rgb"].abs().sum()) == 0 and s[c]["rgb"].shape == (1, 128, 128, 3) for s in seen for c in s)
