@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import logging
 import os
+import warnings
 
 NOISY_LOGGERS = ("mani_skill", "mani_skill ", "torch.utils.cpp_extension")
 
 
 def quiet_libraries() -> None:
     os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
+    # LeRobot's SuppressProgressBars turns the bars back on when it is done, which the variable refuses with a warning
+    warnings.filterwarnings("ignore", message="Cannot enable progress bars")
     for name in NOISY_LOGGERS:
         logging.getLogger(name).setLevel(logging.ERROR)
     import av
