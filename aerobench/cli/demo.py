@@ -56,15 +56,17 @@ def _demo_world(out: Path, args) -> list[str]:
     """Each setting's start as a picture, and a short random-policy rollout as a video."""
     import imageio.v2 as imageio
 
-    from ..envs.views import render_env, rollout_frames
+    from ..envs.views import render_env
     from ..video import write_video
 
     written = []
-    for env_id, kwargs in DEMO_STARTS:
+    for k, (env_id, kwargs) in enumerate(DEMO_STARTS, 1):
         name = f"start_{kwargs['setting']}_{env_id.removeprefix('Aero').removesuffix('-v1').lower()}.png"
+        print(f"picturing each setting's start ({k} of {len(DEMO_STARTS)}): {name} ...", flush=True)
         imageio.imwrite(out / name, render_env(env_id, seed=0, **kwargs))
         written.append(name)
     if not args.no_video:
+        print("rendering a random rollout and an expert pick (videos) ...", flush=True)
         frames = rollout_frames("AeroPick-v1", steps=args.rollout_steps, seed=0, setting="TidyHouse")
         write_video(frames, out / "random_rollout.mp4", fps=10)
         frames = rollout_frames("AeroPick-v1", steps=400, seed=0, policy="expert", every=2, setting="TidyHouse")
@@ -117,3 +119,31 @@ def _demo_dataset(root: Path, episodes: int) -> str:
     print(format_info(dataset_info(root)))
     return "dataset/"
 
+
+def rollout_frames(env_id: str, steps: int, seed: int = 0, policy: str = "random", every: int = 1, **kwargs) -> list:
+    """Composed pictures (`envs.views`) of one episode of `policy` (a registered policy name), every `every` control
+    steps, with a line of progress every 50 steps (rendering them is the demo's slow part)."""
+    import gymnasium as gym
+    import torch
+
+    import aerobench.envs  # noqa: F401
+    from aerobench.envs.views import compose_from_obs
+    from aerobench.policies import make_policy
+
+    env = gym.make(env_id, obs_mode="rgbd", render_mode="rgb_array", **kwargs)
+    try:
+        obs, _ = env.reset(seed=seed)
+        actor = make_policy(policy, env.unwrapped, seed=seed) if policy == "random" else make_policy(policy, env.unwrapped)
+        actor.reset(torch.arange(1))
+        frames = [compose_from_obs(env, obs)]
+        for k in range(steps):
+            obs, _, terminated, truncated, _ = env.step(actor.act(obs))
+            if k % every == 0:
+                frames.append(compose_from_obs(env, obs))
+            if (k + 1) % 50 == 0:
+                print(f"  {policy} in {env_id}: step {k + 1} of at most {steps}", flush=True)
+            if bool(terminated[0]) or bool(truncated[0]):
+                break
+        return frames
+    finally:
+        env.close()
