@@ -502,10 +502,11 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         return {"state": self.current_step_context().signals.proprio}
 
     def _get_obs_extra(self, info: dict):
-        extra = {}
+        # as ManiSkill's PickCube: the tool centre point's pose in every mode (the proprio state's forward kinematics),
+        # the object and the goals only in the state modes
+        ctx = self.current_step_context()
+        extra = {"tcp_pose": ctx.tcp_pose.raw_pose}
         if "state" in self.obs_mode:
-            ctx = self.current_step_context()
-            extra["tcp_pose"] = ctx.tcp_pose.raw_pose
             if ctx.object_pose is not None:
                 extra["object_pose"] = ctx.object_pose.raw_pose
             for evaluator in self.evaluators:
