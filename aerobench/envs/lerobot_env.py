@@ -168,6 +168,12 @@ def make_lerobot_env(
     return LeRobotAdapter(env, getattr(env, "_max_episode_steps", None) or episode_length or 1000)
 
 
+class EnvConfigError(Exception):
+    """A bad `--env.*` value. Not a ValueError on purpose: draccus, which parses LeRobot's command lines, wraps a
+    ValueError from a config's constructor into "Couldn't instantiate class ..." with two chained tracebacks; this one
+    it lets through, so the traceback ends with aerobench's own one-line message."""
+
+
 @EnvConfig.register_subclass("aerobench")
 @dataclass
 class AerobenchEnvConfig(EnvConfig):
@@ -183,8 +189,11 @@ class AerobenchEnvConfig(EnvConfig):
     features_map: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
-        parse_task(self.task)
-        platform = get_platform(self.platform or default_platform(self.task))
+        try:
+            parse_task(self.task)
+            platform = get_platform(self.platform or default_platform(self.task))
+        except ValueError as e:
+            raise EnvConfigError(f"--env.task / --env.platform: {e}") from None
         with_arm = platform.arm is not None
         state_dim = STATE_DIM + (6 if with_arm else 0)
         self.features = {

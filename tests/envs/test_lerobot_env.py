@@ -13,7 +13,7 @@ import pytest
 import torch
 from lerobot.envs.configs import EnvConfig
 
-from aerobench.envs.lerobot_env import AerobenchEnvConfig, make_lerobot_env
+from aerobench.envs.lerobot_env import AerobenchEnvConfig, EnvConfigError, make_lerobot_env
 
 CAMERAS = ("drone_front", "drone_hand", "drone_own")
 
@@ -27,9 +27,9 @@ def test_registered_with_lerobot_and_features():
     assert cfg.features_map["agent_pos"] == "observation.state"
     assert cfg.features_map["environment_state"] == "observation.environment_state"
     assert cfg.features["environment_state"].shape == (34,)  # the arm's task state
-    with pytest.raises(ValueError, match="unknown setting 'Mars'"):
+    with pytest.raises(EnvConfigError, match="unknown setting 'Mars'"):
         AerobenchEnvConfig(task="Mars/pick")
-    with pytest.raises(ValueError, match="TidyHouse has no close skill"):
+    with pytest.raises(EnvConfigError, match="TidyHouse has no close skill"):
         AerobenchEnvConfig(task="TidyHouse/close")
 
 
@@ -137,3 +137,15 @@ def test_lerobot_eval_runs_a_committed_checkpoint_with_the_standard_flags_alone(
     )
     assert result.returncode == 0, result.stderr[-3000:]
     assert "'n_episodes': 1" in result.stdout + result.stderr
+
+
+def test_a_typo_in_the_task_ends_lerobots_traceback_with_aerobenchs_line(tmp_path):
+    """draccus wraps a ValueError from a config into "Couldn't instantiate class ..."; aerobench's error is not one,
+    so the last line a user sees is aerobench's."""
+    lerobot_eval = shutil.which("lerobot-eval", path=os.path.dirname(sys.executable))
+    env = dict(os.environ, HF_HUB_OFFLINE="1", MS_SKIP_ASSET_DOWNLOAD_PROMPT="1")
+    result = subprocess.run([lerobot_eval, "--env.type=aerobench", "--env.task=TidyHous/pick", "--eval.n_episodes=1",
+                             f"--output_dir={tmp_path}"], capture_output=True, text=True, timeout=300, env=env)
+    last = result.stderr.strip().splitlines()[-1]
+    assert result.returncode != 0 and "unknown setting 'TidyHous'; valid settings: TidyHouse" in last, last
+    assert "Couldn't instantiate" not in result.stderr
