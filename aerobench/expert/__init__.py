@@ -78,3 +78,17 @@ class ExpertController:
     def phase(self) -> torch.Tensor:
         phases = torch.stack([expert.phase for expert in self.experts], dim=0)
         return phases[self.stage, torch.arange(self.env.num_envs, device=self.env.device)]
+
+
+def phase_name(skill: str, code: int) -> str | None:
+    """The name of the expert's phase `code` in `skill` ("descend"), None for -1 (no expert phase recorded)."""
+    if code < 0:
+        return None
+    from .articulation import ArticulationPhase
+    from .nav import NavPhase
+    from .pick import PickPhase
+    from .place import PlacePhase
+
+    phases = {"pick": PickPhase, "place": PlacePhase, "nav": NavPhase, "open": ArticulationPhase,
+              "close": ArticulationPhase}[skill]
+    return phases(code).name.lower() if code in phases._value2member_map_ else f"phase {code}"

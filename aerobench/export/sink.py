@@ -46,6 +46,7 @@ from .features import (
     features_summary,
     robot_type,
 )
+from .language import add_language_columns
 
 BOOKKEEPING_DIR = ".aerobench"
 GENERATION_FILE = "generation.json"
@@ -352,6 +353,7 @@ class DatasetSink:
             dataset.save_episode(parallel_encoding=parallel)
         dataset.finalize()
         shutil.rmtree(folder / "images", ignore_errors=True)  # LeRobot's emptied per-frame staging folders
+        add_language_columns(folder)  # the phases and stages where LeRobot's own tools keep them
 
 
 # ── merging parts into root ───────────────────────────────────────────────────────────────────────────────────

@@ -65,9 +65,16 @@ def dataset_info(root: str | Path) -> dict:
     if info is None and not bookkeeping_dir(root).is_dir():
         raise ValueError(f"{root} is neither a LeRobot dataset (no meta/info.json) nor an aerobench generation folder")
     merged_parts = set((read_dataset_meta(root) or {}).get("parts", []))
+    warning = None
     if info is not None:
         episodes = read_jsonl(root / "meta" / EPISODES_FILE)
         frames, features = info["total_frames"], info["features"]
+        if len(episodes) != info["total_episodes"]:  # edited by a tool that keeps LeRobot's files only
+            warning = (f"meta/{EPISODES_FILE} {'is missing' if not episodes else 'lists other episodes'} (the dataset "
+                       f"was edited by a tool that keeps LeRobot's files only, e.g. lerobot-edit-dataset): outcome, "
+                       f"mode and object counts are unknown; the per-frame annotation.* columns and the subtask rows "
+                       f"(language_persistent) are intact")
+            episodes = _episodes_from_data(root, info["total_episodes"])
     else:
         episodes = [row for row in processed if row["in_dataset"]]
         frames = sum(int(row["steps"]) for row in episodes)
@@ -76,6 +83,7 @@ def dataset_info(root: str | Path) -> dict:
         info = part_info or {}
     return {
         "root": str(root),
+        "warning": warning,
         "merged": (root / "meta" / "info.json").is_file(),
         "episodes": len(episodes),
         "frames": int(frames),
@@ -90,9 +98,25 @@ def dataset_info(root: str | Path) -> dict:
     }
 
 
+def _episodes_from_data(root: Path, total: int) -> list[dict]:
+    """Per episode, what its data columns still say (the skill of its first annotated frame); "unknown" elsewhere."""
+    import pyarrow.parquet as pq
+
+    from ..envs.tasks import SKILLS
+    from .features import ANNOTATION_SKILL
+
+    first: dict[int, int] = {}
+    for path in sorted((root / "data").rglob("*.parquet")):
+        table = pq.read_table(path, columns=["episode_index", ANNOTATION_SKILL])
+        for episode, skill in zip(table.column(0).to_pylist(), table.column(1).to_pylist()):
+            first.setdefault(int(episode), int(skill))
+    return [{"setting": "unknown", "skill": SKILLS[first[e]] if 0 <= first.get(e, -1) < len(SKILLS) else "unknown",
+             "object": "unknown", "outcome": "unknown", "mode": "unknown"} for e in range(total)]
+
+
 def format_info(info: dict) -> str:
     """`dataset_info`'s dict as a readable plain-text table."""
-    lines = [
+    lines = [*([f"warning: {info['warning']}"] if info.get("warning") else []),
         f"dataset   {info['root']}  ({'merged' if info['merged'] else 'not merged yet'})",
         f"episodes  {info['episodes']}   frames {info['frames']}   fps {info['fps']}   robot {info['robot_type']}",
         f"processed {info['processed']} ({info['not_kept']} not kept)   "
