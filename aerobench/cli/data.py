@@ -18,6 +18,9 @@ def add_generate(sub) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--shard", type=parse_shard, default=(0, 1), help="i/k: this process runs the i-th of k contiguous blocks of the episodes")
     p.add_argument("--keep", choices=("success", "all"), default="success", help="which episodes enter the dataset")
+    p.add_argument("--language", action="store_true",
+                   help="also write the phases and stages as LeRobot language_persistent subtask rows (kept by "
+                        "lerobot-edit-dataset; LeRobot 0.6.1's lerobot-dataset-viz cannot read such datasets)")
     p.add_argument("--policy", default="expert", help="the policy that flies: expert (default), random, or a "
                                                       "learned one (bc, ppo, ...) with --checkpoint")
     p.add_argument("--checkpoint", default=None, help="checkpoint of a learned --policy (e.g. RUN/checkpoint)")
@@ -79,7 +82,7 @@ def _run_generate(args) -> int:
         if args.shards is not None and args.shards < 1:
             raise ValueError(f"--shards must be a positive integer, got {args.shards}")
         if args.ray is None:
-            open_sink(spec, args.out, args.keep, args.part_size)  # a folder of another generation fails before work
+            open_sink(spec, args.out, args.keep, args.part_size, args.language)  # a folder of another generation fails before work
         else:
             from ..rollout.ray_shards import connect
 
@@ -91,7 +94,7 @@ def _run_generate(args) -> int:
         if args.ray is not None:
             return _generate_on_ray(args, spec, generate_on_ray)
         progress = generate(spec, args.out, args.keep, args.part_size, on_episode=lambda ep, progress: bar(progress),
-                            threads=args.threads)
+                            threads=args.threads, language=args.language)
     except ValueError as e:
         raise UserError(str(e)) from None
     bar(progress, final=True)
@@ -103,7 +106,7 @@ def _run_generate(args) -> int:
 def _generate_on_ray(args, spec, generate_on_ray) -> int:
     update, close = ray_progress_bar(spec)
     root = generate_on_ray(spec, args.out, args.keep, args.part_size, address=args.ray, shards=args.shards,
-                           on_progress=update)
+                           on_progress=update, language=args.language)
     close()
     print(f"{spec.episodes} episodes in {args.out}, merged" + ("" if root else " (no episode kept)"))
     return 0

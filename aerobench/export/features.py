@@ -121,11 +121,14 @@ def features_summary(features: dict[str, dict]) -> str:
 
 
 def features_signature(features: dict[str, dict]) -> dict[str, tuple]:
-    """What must agree between two parts of one dataset: each user feature's dtype, shape and names."""
+    """What must agree between two parts of one dataset: each user feature's dtype, shape and names.
+
+    Language columns are left out: the merge adds them to the whole dataset (export/language.py), no episode has them.
+    """
     return {
         key: (ft["dtype"], tuple(ft["shape"]), tuple(ft["names"]) if ft.get("names") else None)
         for key, ft in features.items()
-        if key not in LEROBOT_DEFAULT_KEYS
+        if key not in LEROBOT_DEFAULT_KEYS and ft["dtype"] != "language"
     }
 
 

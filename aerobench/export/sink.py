@@ -353,7 +353,8 @@ class DatasetSink:
             dataset.save_episode(parallel_encoding=parallel)
         dataset.finalize()
         shutil.rmtree(folder / "images", ignore_errors=True)  # LeRobot's emptied per-frame staging folders
-        add_language_columns(folder)  # the phases and stages where LeRobot's own tools keep them
+        if self.spec.get("language"):
+            add_language_columns(folder)  # the phases and stages where LeRobot's own tools keep them
 
 
 # ── merging parts into root ───────────────────────────────────────────────────────────────────────────────────

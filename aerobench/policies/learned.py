@@ -47,6 +47,7 @@ CHECKPOINT_SUBDIR = "checkpoint"  # a training run's OUT/checkpoint
 ALGORITHMS = ("bc", "ppo")
 CAMERAS = ("drone_front", "drone_hand", "drone_own")
 CAMERA_ENCODERS = ("shared", "separate")  # one CNN for every camera, or one per camera
+ENCODER_HEADS = ("flatten", "keypoints")  # a camera CNN's maps to features (`CameraEncoder`)
 STD_FLOOR = 1e-2  # a constant dimension (e.g. an always-open gripper command) must not divide by ~0
 UINT8_MAX = 255.0
 GRIPPER_MODES = ("binary", "continuous")
@@ -84,10 +85,25 @@ def mlp(sizes: list[int], out_gain: float = 1.0) -> nn.Sequential:
     return nn.Sequential(*layers)
 
 
-class CameraEncoder(nn.Module):
-    """A small CNN: stride-2 3x3 convolutions, then a linear layer to `feature_dim` features."""
+class SpatialSoftmax(nn.Module):
+    """Each feature map as the expected image position of its activation (Levine et al. 2016; robomimic's and
+    Diffusion Policy's image head): `(N, C, h, w)` -> `(N, 2C)` keypoints in [-1, 1], where a thing is in the image."""
 
-    def __init__(self, image_size: int, channels: tuple[int, ...], feature_dim: int):
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        n, c, h, w = features.shape
+        attention = torch.softmax(features.flatten(2), -1).view(n, c, h, w)
+        ys = torch.linspace(-1.0, 1.0, h, device=features.device)
+        xs = torch.linspace(-1.0, 1.0, w, device=features.device)
+        return torch.cat([(attention.sum(2) * xs).sum(-1), (attention.sum(3) * ys).sum(-1)], -1)
+
+
+class CameraEncoder(nn.Module):
+    """A small CNN: stride-2 3x3 convolutions, then to `feature_dim` features through a linear layer over the flattened
+    maps (`head="flatten"`), or over the maps' keypoints (`head="keypoints"`: a 1x1 convolution to `keypoints` maps
+    of the last convolution's resolution, `SpatialSoftmax`)."""
+
+    def __init__(self, image_size: int, channels: tuple[int, ...], feature_dim: int, head: str = "flatten",
+                 keypoints: int = 32):
         super().__init__()
         layers, c_in = [], IMAGE_CHANNELS
         for c_out in channels:
@@ -95,7 +111,11 @@ class CameraEncoder(nn.Module):
             c_in = c_out
         self.conv = nn.Sequential(*layers)
         side = image_size // 2 ** len(channels)
-        self.head = nn.Sequential(nn.Flatten(), nn.Linear(c_in * side * side, feature_dim), nn.ReLU())
+        if head == "keypoints":
+            self.head = nn.Sequential(nn.Conv2d(c_in, keypoints, 1), SpatialSoftmax(),
+                                      nn.Linear(2 * keypoints, feature_dim), nn.ReLU())
+        else:
+            self.head = nn.Sequential(nn.Flatten(), nn.Linear(c_in * side * side, feature_dim), nn.ReLU())
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
         return self.head(self.conv(images))
@@ -114,7 +134,8 @@ class Trunk(nn.Module):
         in_dim = model["state_dim"]
         if self.cameras:
             def encoder() -> CameraEncoder:
-                return CameraEncoder(model["image_size"], tuple(model["cnn_channels"]), model["feature_dim"])
+                return CameraEncoder(model["image_size"], tuple(model["cnn_channels"]), model["feature_dim"],
+                                     model.get("encoder_head", "flatten"))
 
             if self.separate:
                 self.encoders = nn.ModuleDict({c: encoder() for c in self.cameras})
@@ -153,7 +174,7 @@ def make_critic(model: dict) -> Trunk:
 def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs: InputSpec,
                cameras: tuple[str, ...] = (), image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32),
                feature_dim: int = 64, gripper: str = "binary", blind: bool = False, camera_encoder: str = "shared",
-               instruction_dim: int = 0) -> dict:
+               instruction_dim: int = 0, encoder_head: str = "flatten") -> dict:
     """The JSON description of the networks a checkpoint holds (enough to rebuild them). `state_dim` counts the
     selected input values of all history frames; `instruction_dim` > 0 embeds the instruction (`inputs.instruction`)."""
     unknown = [c for c in cameras if c not in CAMERAS]
@@ -165,6 +186,8 @@ def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs:
         raise ValueError(f"unknown gripper head {gripper!r}; valid: {', '.join(GRIPPER_MODES)}")
     if camera_encoder not in CAMERA_ENCODERS:
         raise ValueError(f"--camera-encoder must be one of {', '.join(CAMERA_ENCODERS)}, got {camera_encoder!r}")
+    if encoder_head not in ENCODER_HEADS:
+        raise ValueError(f"--encoder-head must be one of {', '.join(ENCODER_HEADS)}, got {encoder_head!r}")
     if blind and not cameras:
         raise ValueError("a blind control blanks the cameras of a camera policy: give it cameras")
     if inputs.instruction != (instruction_dim > 0):
@@ -172,7 +195,7 @@ def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs:
     return {"state_dim": state_dim, "action_dim": action_dim, "hidden": list(hidden), "cameras": list(cameras),
             "image_size": image_size, "cnn_channels": list(cnn_channels), "feature_dim": feature_dim,
             "inputs": inputs.as_dict(), "gripper": gripper, "blind": blind, "camera_encoder": camera_encoder,
-            "instruction_dim": instruction_dim}
+            "instruction_dim": instruction_dim, "encoder_head": encoder_head}
 
 
 def model_features(model: dict) -> list[str]:

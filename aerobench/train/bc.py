@@ -128,6 +128,10 @@ class BCConfig:
     shift: int = field(default=4, metadata={"help": "random-shift augmentation of camera images, in pixels (0: off)"})
     camera_encoder: str = field(default="shared", metadata={"help": "shared (one CNN for every camera) or separate"})
     feature_dim: int = field(default=64, metadata={"help": "features per camera"})
+    encoder_head: str = field(default="flatten", metadata={"help": "a camera CNN's head: flatten (a linear layer over "
+                              "its maps) or keypoints (spatial softmax: where things are in the image)"})
+    cnn_channels: tuple[int, ...] = field(default=(16, 32, 32), metadata={"help": "channels of the camera CNN's "
+                                          "stride-2 convolutions"})
     save_every: int = field(default=1_000, metadata={"help": "checkpoint every N steps (and at the end)"})
     log_every: int = field(default=50, metadata={"help": "log scalars every N steps"})
     repo_id: str = field(default="local/aerobench", metadata={"help": "LeRobot repo id of the local dataset"})
@@ -199,8 +203,9 @@ class BCConfig:
     def model(self, inputs: InputSpec, state_dim: int, action_dim: int) -> dict:
         """The checkpoint's model spec for these inputs and sizes."""
         return model_spec(state_dim, action_dim, self.hidden, inputs, self.cameras if self.images else (),
-                          self.image_size, feature_dim=self.feature_dim, gripper=self.gripper, blind=self.blind,
-                          camera_encoder=self.camera_encoder, instruction_dim=INSTRUCTION_DIM if inputs.instruction else 0)
+                          self.image_size, tuple(self.cnn_channels), feature_dim=self.feature_dim, gripper=self.gripper,
+                          blind=self.blind, camera_encoder=self.camera_encoder, encoder_head=self.encoder_head,
+                          instruction_dim=INSTRUCTION_DIM if inputs.instruction else 0)
 
 
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
@@ -314,7 +319,8 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         data = {k: v[keep] for k, v in data.items()}
     if config.images and not config.blind:  # a blind control reads no frame: its cameras are blanked
         images = camera_frames(root, config.cameras, config.image_size)
-        data.update({cam: images[cam][data["index"]] for cam in config.cameras})
+        every = len(data["index"]) == ds.meta.total_frames and bool((data["index"] == torch.arange(len(data["index"]))).all())
+        data.update({cam: images[cam] if every else images[cam][data["index"]] for cam in config.cameras})  # no copy
     facts = {"episodes": len(episodes), "frames": len(chosen), "robot_type": ds.meta.robot_type,
              "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames, "inputs": inputs.as_dict()}
     if config.objects is not None:

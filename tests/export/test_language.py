@@ -27,7 +27,7 @@ def test_the_rows_survive_lerobots_episode_deletion_and_dataset_info_says_what_w
     root = tmp_path / "ds"
     spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=2, objects=("tuna_fish_can",), seed=2,
                        record_cameras=False, max_steps=60)
-    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all"})
+    sink = DatasetSink(root, {**spec.as_dict(), "keep": "all", "language": True})
     with torch_threads(1):
         RolloutRunner(spec, sink).run()
     sink.close()
