@@ -38,7 +38,7 @@ def test_every_command_has_a_help_page(capsys):
     parser = build_parser()
     commands = _commands(parser)
     assert {("fly",), ("demo",), ("render",), ("generate",), ("dataset", "info"), ("eval",), ("summarize",),
-            ("compare",), ("leaderboard",), ("train", "bc"), ("train", "ppo"), ("pi-init",)} <= set(commands)
+            ("compare",), ("plan",), ("leaderboard",), ("train", "bc"), ("train", "ppo"), ("pi-init",)} <= set(commands)
     for path in [(), *commands]:
         with pytest.raises(SystemExit) as stop:
             parser.parse_args([*path, "--help"])

@@ -1,4 +1,4 @@
-"""`aerobench eval`, `summarize`, `compare` and `leaderboard`: scoring policies and presenting the scores."""
+"""`aerobench eval`, `summarize`, `compare`, `plan` and `leaderboard`: scoring policies and presenting the scores."""
 
 from __future__ import annotations
 
@@ -147,6 +147,33 @@ def _run_compare(args) -> int:
     print(format_comparison(result))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
+    return 0
+
+
+def add_plan(sub) -> None:
+    p = sub.add_parser("plan", help="episodes per cell that detect a success-rate difference with a given power "
+                       "(the exact McNemar test of aerobench compare)")
+    p.add_argument("--baseline", type=float, required=True, help="the success rate to compare against, e.g. 0.8")
+    p.add_argument("--difference", type=float, required=True,
+                   help="the difference in success rate to detect, e.g. 0.1 (both directions, the test is two-sided)")
+    p.add_argument("--power", type=float, default=0.8, help="chance of detecting it (default: 0.8)")
+    p.add_argument("--alpha", type=float, default=0.05, help="two-sided significance level (default: 0.05)")
+    p.add_argument("--cells", type=int, default=1, help="cells tested together: each at alpha / cells, the strictest "
+                   "step of the Holm correction (default: 1)")
+    p.add_argument("--discordant", type=float, default=None,
+                   help="share of paired episodes the two policies disagree on, e.g. (A only + B only) / n of a pilot "
+                        "compare (default: their outcomes independent given the start)")
+    p.set_defaults(func=_run_plan)
+
+
+def _run_plan(args) -> int:
+    from ..eval.plan import format_plan, plan
+
+    try:
+        plans = plan(args.baseline, args.difference, args.power, args.alpha, args.cells, args.discordant)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(format_plan(plans, args.power, args.alpha, args.cells, args.discordant))
     return 0
 
 

@@ -3,8 +3,9 @@
 Two evals made with the same setting, skills, objects and `--seed` run the same planned episodes (index, seed, skill,
 object), so their outcomes pair up. Per skill-object cell and overall: the paired table (both succeed / only A /
 only B / neither), the exact McNemar p-value, a 95% interval for rate(A) - rate(B) (Newcombe's method 10 for paired
-data) and a verdict in words. Starts that either run rejected at initialization (outcome I) are left out of the
-pairs. Results whose starts differ are refused with one line.
+data) and a verdict in words; across the cells, Holm's correction of their p-values says which cells differ. Starts
+that either run rejected at initialization (outcome I) are left out of the pairs. Results whose starts differ are
+refused with one line.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 
 from ..rollout.records import read_records
 from .results import load_results
-from .stats import mcnemar_sample_size, paired_comparison, paired_difference_interval
+from .stats import holm_adjusted, mcnemar_sample_size, paired_comparison, paired_difference_interval
 
 ALPHA = 0.05
 POWER = 0.8
@@ -71,16 +72,24 @@ def _check_same_starts(a: Run, b: Run) -> None:
                          f"setting, skills, objects, --episodes-per-object and --seed")
 
 
-def _verdict(row: dict, difference: float) -> str:
+def _decision(row: dict, difference: float) -> str:
+    """The verdict in two words: A better, B better, no detectable difference, underpowered, no paired episodes."""
     if row["n"] == 0:
         return "no paired episodes"
     if row["p_value"] < ALPHA:
         return "A better" if row["only_a"] > row["only_b"] else "B better"
     lo, hi = row["diff95"]
-    if -difference < lo and hi < difference:
+    return "no detectable difference" if -difference < lo and hi < difference else "underpowered"
+
+
+def _verdict(row: dict, difference: float) -> str:
+    decision = _decision(row, difference)
+    if decision == "no detectable difference":
         return f"no detectable difference at this n (95% interval within +-{100 * difference:.0f} points)"
-    return (f"underpowered: about {row['n_needed']} paired episodes would detect a {100 * difference:.0f}-point "
-            f"difference ({100 * POWER:.0f}% power)")
+    if decision == "underpowered":
+        return (f"underpowered: about {row['n_needed']} paired episodes would detect a {100 * difference:.0f}-point "
+                f"difference ({100 * POWER:.0f}% power)")
+    return decision
 
 
 def _paired_row(a: dict[int, bool], b: dict[int, bool], difference: float) -> dict:
@@ -88,13 +97,36 @@ def _paired_row(a: dict[int, bool], b: dict[int, bool], difference: float) -> di
     if not a:
         row = {"n": 0, "both": 0, "only_a": 0, "only_b": 0, "neither": 0, "rate_a": 0.0, "rate_b": 0.0, "p_value": 1.0,
                "diff95": [-1.0, 1.0], "n_needed": mcnemar_sample_size(0.0, difference, POWER, ALPHA)}
-        return {**row, "verdict": _verdict(row, difference)}
+        return {**row, "decision": _decision(row, difference), "verdict": _verdict(row, difference)}
     pc = paired_comparison(a, b)
     row = {"n": pc.n, "both": pc.both, "only_a": pc.only_a, "only_b": pc.only_b, "neither": pc.neither,
            "rate_a": (pc.both + pc.only_a) / pc.n, "rate_b": (pc.both + pc.only_b) / pc.n, "p_value": pc.p_value,
            "diff95": list(paired_difference_interval(pc.both, pc.only_a, pc.only_b, pc.neither)),
            "n_needed": mcnemar_sample_size((pc.only_a + pc.only_b) / pc.n, difference, POWER, ALPHA)}
-    return {**row, "verdict": _verdict(row, difference)}
+    return {**row, "decision": _decision(row, difference), "verdict": _verdict(row, difference)}
+
+
+def _holm(rows: list[dict]) -> dict:
+    """Holm-adjusted p-values of the cells with paired episodes (written into the rows as `p_holm`) and the cells that
+    differ at family-wise alpha."""
+    tested = [row for row in rows if row["n"]]
+    for row, p in zip(tested, holm_adjusted([row["p_value"] for row in tested])):
+        row["p_holm"] = p
+    differ = [row for row in tested if row["p_holm"] < ALPHA]
+    return {"cells": len(tested),
+            "a_better": [[r["skill"], r["object"]] for r in differ if r["only_a"] > r["only_b"]],
+            "b_better": [[r["skill"], r["object"]] for r in differ if r["only_b"] > r["only_a"]]}
+
+
+def holm_text(cmp: Mapping) -> str:
+    """One sentence: which cells differ after Holm's correction over the comparison's cells."""
+    holm = cmp["holm"]
+
+    def cells(found: list) -> str:
+        return "none" if not found else f"{len(found)} ({', '.join(f'{s} {o}'.strip() for s, o in found)})"
+
+    return (f"Holm over the {holm['cells']} cells (family-wise alpha {ALPHA}): A better in {cells(holm['a_better'])}, "
+            f"B better in {cells(holm['b_better'])}")
 
 
 def compare(a: str | Path | Run, b: str | Path | Run, difference: float = 0.10) -> dict:
@@ -116,12 +148,13 @@ def compare(a: str | Path | Run, b: str | Path | Run, difference: float = 0.10) 
         success_a, success_b = cells.setdefault((skill, obj or ""), ({}, {}))
         success_a[index], success_b[index] = out_a == "S", out_b == "S"
     rows = [{"skill": s, "object": o, **_paired_row(*pair, difference)} for (s, o), pair in cells.items()]
+    holm = _holm(rows)
     every_a = {i: v for pair in cells.values() for i, v in pair[0].items()}
     every_b = {i: v for pair in cells.values() for i, v in pair[1].items()}
     overall = {"skill": OVERALL[0], "object": OVERALL[1], **_paired_row(every_a, every_b, difference)}
     return {"a": {"label": a.label, "path": str(a.path)}, "b": {"label": b.label, "path": str(b.path)},
             "setting": a.results["setting"], "seed": a.results["provenance"].get("seed"),
-            "excluded_init_failures": excluded, "difference": difference, "cells": rows, "overall": overall,
+            "excluded_init_failures": excluded, "difference": difference, "cells": rows, "overall": overall, "holm": holm,
             "interval": "Newcombe (1998) method 10, paired", "test": "exact McNemar, two-sided"}
 
 
@@ -136,6 +169,7 @@ def format_comparison(cmp: Mapping) -> str:
         lines.append(f"{row['skill']:<8} {row['object'] or '-':<17} {row['n']:>4} {row['both']:>5} {row['only_a']:>6} "
                      f"{row['only_b']:>6} {row['neither']:>7} {100 * row['rate_a']:>6.1f} {100 * row['rate_b']:>6.1f} "
                      f"{100 * lo:>7.1f}..{100 * hi:<6.1f} {row['p_value']:>7.3g}  {row['verdict']}")
+    lines.append(holm_text(cmp))
     lines.append(f"interval: {cmp['interval']}; test: {cmp['test']}; power for a "
                  f"{100 * cmp['difference']:.0f}-point difference at alpha {ALPHA}")
     return "\n".join(lines)

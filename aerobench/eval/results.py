@@ -58,6 +58,8 @@ def _cell(rows: list[Mapping]) -> dict:
         # per episode (plan index, seed, outcome), so two runs on the same starts can be compared pairwise
         "episodes": [[int(r["episode_index"]), r.get("seed"), r["outcome"]] for r in rows],
         "failure_analysis": failure_summary(executed),
+        # median episode seconds of the successes (records' duration_s; None where none succeeded or none say)
+        "time_to_success_s": _median([r.get("duration_s") for r in executed if r["outcome"] == "S"]),
     }
 
 

@@ -117,6 +117,17 @@ def paired_difference_interval(both: int, only_a: int, only_b: int, neither: int
     return max(-1.0, lower), min(1.0, upper)
 
 
+def holm_adjusted(p_values: list[float]) -> list[float]:
+    """Holm's (1979) step-down adjusted p-values, in the order given: the k-th smallest of m is multiplied by
+    m - k + 1, then made non-decreasing; a cell differs at family-wise level alpha where its adjusted p < alpha."""
+    order = sorted(range(len(p_values)), key=lambda i: p_values[i])
+    adjusted, running = [1.0] * len(p_values), 0.0
+    for k, i in enumerate(order):
+        running = max(running, min(1.0, (len(p_values) - k) * p_values[i]))
+        adjusted[i] = running
+    return adjusted
+
+
 def mcnemar_power(n: int, discordant: float, difference: float, alpha: float = 0.05) -> float:
     """Approximate power of the two-sided McNemar test with `n` paired episodes to detect a true difference in
     success rate `difference`, when a fraction `discordant` of the pairs disagree (Connor, 1987, Biometrics 43:207)."""

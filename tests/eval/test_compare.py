@@ -64,6 +64,26 @@ def test_verdicts_say_no_difference_or_underpowered(tmp_path):
     assert row["verdict"].startswith("underpowered: about ") and row["n_needed"] > 20
 
 
+def test_holm_across_cells(tmp_path):
+    """Three cells: A wins 10 of 10 discordant pairs in one (p = 2^-9), 6 of 6 in another (p = 2^-5), none differ in
+    the third. Holm: 3 x 2^-9 < 0.05 differs; 2 x 2^-5 = 0.0625 does not, though its own p is below 0.05."""
+    cells = {"sugar_box": _pair(both=5, only_a=10, only_b=0, neither=5), "bowl": _pair(both=10, only_a=6, only_b=0,
+             neither=4), "cracker_box": _pair(both=10, only_a=0, only_b=0, neither=10)}
+    paths = []
+    for name, side in (("a", 0), ("b", 1)):
+        rows = [_record(20 * k + i, o, name, obj=obj) for k, (obj, pair) in enumerate(cells.items())
+                for i, o in enumerate(pair[side])]
+        paths.append(write_results(tmp_path / f"{name}.json", summarize(rows, {"seed": 4200}, label=name)))
+    cmp = compare(*paths)
+    by_object = {row["object"]: row for row in cmp["cells"]}
+    assert by_object["sugar_box"]["p_holm"] == pytest.approx(3 * 2**-9)
+    assert by_object["bowl"]["p_value"] == pytest.approx(2**-5) and by_object["bowl"]["decision"] == "A better"
+    assert by_object["bowl"]["p_holm"] == pytest.approx(2 * 2**-5) and by_object["cracker_box"]["p_holm"] == 1.0
+    assert cmp["holm"] == {"cells": 3, "a_better": [["pick", "sugar_box"]], "b_better": []}
+    assert "Holm over the 3 cells (family-wise alpha 0.05): A better in 1 (pick sugar_box), B better in none" \
+        in format_comparison(cmp)
+
+
 def test_init_failures_are_left_out_of_the_pairs(tmp_path):
     a, b = _pair(both=4, only_a=1, only_b=0, neither=1)
     b[0] = "I"  # B's env rejected the first start

@@ -160,7 +160,7 @@ def test_summarize_and_leaderboard_cli(tiny_eval, tmp_path):
     page = Path(tmp_path / "boards" / "index.html").read_text()
     grid = page.split('<table class="sortable"')[1].split("</table>")[0]
     assert grid.count("<tr>") == 1 + 4  # one setting: a header row and 2 policies x 2 skills
-    assert '<div class="compare" data-setting="TidyHouse">' in page  # both ran the same starts: comparable
+    assert '<div class="compare" data-setting="TidyHouse"' in page  # both ran the same starts: comparable
 
 
 def test_video_shows_the_third_person_view_above_the_onboard_cameras(tmp_path, monkeypatch):

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from aerobench.eval.leaderboard import MODE_COLOURS, MODE_FAMILIES, build_leaderboard
+from aerobench.eval.leaderboard import build_leaderboard
+from aerobench.eval.leaderboard_html import MODE_COLOURS, MODE_FAMILIES
 from aerobench.eval.results import summarize, write_results
 
 from .spec_table import OBJECTS, SPEC_MEAN_SR, SPEC_TABLE, spec_records
@@ -57,6 +58,37 @@ def test_rows_are_ranked_within_their_input_tier_only(spec_results, tmp_path):
     assert "| ACT | vision |" in rows["ACT"] and "| PI0 | privileged |" in rows["PI0"]
 
 
+def _row(tmp_path: Path, name: str, policy: str, label: str, seed: int, successes: int, tier: str) -> Path:
+    rows = [{"episode_index": i, "seed": seed * 1_000_003 + i, "setting": "TidyHouse", "policy": policy, "skill": "pick",
+             "object": "sugar_box", "outcome": "S" if i < successes else "F", "cause": "", "segments": [],
+             "mode": "Successful grasp handoff" if i < successes else "Collision failure", "duration_s": 3.0 + i}
+            for i in range(10)]
+    results = summarize(rows, {"seed": seed, "physx_solver": "pgs"}, label=label)
+    return write_results(tmp_path / "results" / f"TidyHouse_{name}.json", {**results, "inputs": tier})
+
+
+def test_rows_are_grouped_by_protocol_starts_and_solver(tmp_path):
+    """One table per group of comparable rows (same skills, --seed and solver): the expert first, random last, best in
+    bold within the group only; a long label gives way to the results file's name, the recipe has its own table."""
+    paths = [_row(tmp_path, "random", "random", "random", 7, 0, "none"),
+             _row(tmp_path, "bc_long", "bc", "bc (state MLP, 3 frames, 20k steps; a label too long to be a name)", 7, 8,
+                  "privileged"),
+             _row(tmp_path, "expert", "expert", "expert", 7, 9, "privileged"),
+             _row(tmp_path, "ppo", "ppo", "ppo", 8, 10, "privileged")]
+    build_leaderboard(paths, tmp_path / "boards")
+    md = (tmp_path / "boards" / "TidyHouse.md").read_text()
+    groups = md.split("### ")[1:]
+    assert groups[0].startswith("Pick; starts of --seed 7; PGS") and groups[1].startswith("Pick; starts of --seed 8; PGS")
+    names = [m.group(1) for m in re.finditer(r"^\| (\S+) \| (?:privileged|none) \| Pick \|", groups[0], re.M)]
+    assert names == ["expert", "bc_long", "random"]
+    assert "| expert | privileged | Pick | **90.0 ± 9.5** | **90.0** |" in groups[0]
+    assert "| ppo | privileged | Pick | 100.0 ± 0.0 | 100.0 |" in groups[1]  # alone in its group: never "best"
+    facts = next(line for line in md.splitlines() if line.startswith("| bc_long | bc |"))
+    assert facts.endswith("| - | - | - | 10 | PGS | pick 6.5 | - | - |")  # no checkpoint named; 3.0 + i s, i < 8
+    assert "| bc_long | bc (state MLP, 3 frames, 20k steps; a label too long to be a name) | `TidyHouse_bc_long.json` |" \
+        in md
+
+
 def test_latex_layout(spec_results, tmp_path):
     build_leaderboard(spec_results, tmp_path)
     tex = (tmp_path / "PrepareGroceries.tex").read_text()
@@ -89,7 +121,8 @@ def _chromium() -> str:
 
 def test_training_runs_sharing_a_label_pool_into_one_row(tmp_path):
     """Three training seeds of one recipe (one --label, three checkpoints): one row over all their episodes, with
-    each run's Mean S.R., their mean and a bootstrap interval over runs."""
+    each run's Mean S.R., their mean and a bootstrap interval over runs; its recipe read from the checkpoints the
+    repository holds (two of three here), the row marked for the one it does not."""
     paths = []
     for seed, successes in ((1, 8), (2, 9), (3, 4)):
         rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "policy": "bc", "skill": "pick",
@@ -97,13 +130,21 @@ def test_training_runs_sharing_a_label_pool_into_one_row(tmp_path):
                  "mode": "Successful grasp handoff" if i < successes else "Collision failure"} for i in range(10)]
         provenance = {"seed": 4200, "checkpoint": f"runs/bc_seed{seed}", "command": f"aerobench eval ... seed{seed}"}
         paths.append(write_results(tmp_path / f"bc_seed{seed}.json", summarize(rows, provenance, label="bc")))
+        if seed < 3:  # recorded relative to where the eval ran: found above the results file
+            checkpoint = tmp_path / "runs" / f"bc_seed{seed}"
+            checkpoint.mkdir(parents=True)
+            (checkpoint / "config.json").write_text(json.dumps({"algorithm": "bc", "data": {"episodes": 100, "frames": 12345},
+                                                                "train": {"steps": 2000, "seed": seed,
+                                                                          "dataset": "outputs/data/pick_dart"}}))
     build_leaderboard(paths, tmp_path / "boards")
     md = (tmp_path / "boards" / "TidyHouse.md").read_text()
-    row = next(line for line in md.splitlines() if line.startswith("| bc | unknown | Pick"))  # no known checkpoint
+    row = next(line for line in md.splitlines() if line.startswith("| bc † | unknown | Pick"))  # no known tier
     assert "70.0 ± 8.4" in row  # 21 of 30 pooled episodes: sqrt(0.7 * 0.3 / 30) = 8.4
-    notes = next(line for line in md.splitlines() if line.startswith("| bc | 30 |"))
-    assert "3 runs: 80.0, 90.0, 40.0 (mean 70.0, bootstrap 95% over runs 40.0-90.0)" in notes
-    assert "bc_seed1.json + bc_seed2.json + bc_seed3.json" in notes
+    facts = next(line for line in md.splitlines() if line.startswith("| bc † | bc |"))
+    assert "| 100 demos, 12.3k transitions (DART) | 2k steps | 3 runs: 1, 2, - | 30 over 3 runs | TGS | - | - |" in facts
+    assert "3 runs: 80.0, 90.0, 40.0 (mean 70.0, bootstrap 95% over runs 40.0-90.0)" in facts
+    assert "† checkpoint not in the repository" in md and "bc (`runs/bc_seed3`)" in md
+    assert "| bc | bc | `bc_seed1.json + bc_seed2.json + bc_seed3.json` |" in md
     from aerobench.eval.pooling import bootstrap_mean_interval
 
     lo, hi = bootstrap_mean_interval([0.8, 0.9, 0.4])
@@ -120,22 +161,40 @@ def test_html_renders_in_headless_chromium(spec_results, tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     dom = r.stdout
     assert 'data-tables-ready="2"' in dom  # the page's script ran over both settings' tables
-    assert dom.count('<td class="mean"') == 10 and "44.6</td>" in dom and '<td class="best"' in dom
-    assert dom.count('class="bar"') == 6  # one failure-mode bar per policy
-    # the legend: every family once, every mode of the spec's tables with its swatch
-    assert dom.count('class="legend" data-family=') == len(MODE_FAMILIES)
-    assert dom.count('class="swatch" data-mode=') == len(MODE_COLOURS)
-    # one colour per mode, whatever the row: Collision failure is drawn in all six bars in its fixed colour
+    assert dom.count('<td class="mean"') == 11 and "44.6</td>" in dom and '<td class="best"' in dom
+    assert dom.count('class="bar"') == 7  # one failure-mode bar per policy
+    # the legend lists the modes the bars draw, each once, under the families they belong to, and no other
+    legend = dom.split('<div id="mode-legend">')[1].split("</div>")[0]
+    listed = re.findall(r'class="swatch" data-mode="([^"]+)"', legend)
+    drawn = set(re.findall(r'<span data-mode="([^"]+)" style="width', dom))
+    assert sorted(listed) == sorted(drawn) == ["Collision failure", "Object-drop failure", "Successful grasp handoff",
+                                              "Successful placement"]
+    families = re.findall(r'class="legend" data-family="([^"]+)"', legend)
+    assert families == ["success", "collision", "object lost"] and len(MODE_FAMILIES) > len(families)
+    # one colour per mode, whatever the row: Collision failure is drawn in the six bars that have one, in its colour
     drawn = re.findall(r'data-mode="Collision failure" style="width:[0-9.]+%;background:([^"]+)"', dom)
     assert len(drawn) == 6 and set(drawn) == {MODE_COLOURS["Collision failure"]}
     assert MODE_COLOURS["Successful placement"].startswith("hsl(122,")
-    # the comparison view shows the first comparable pair's paired table with a verdict
-    view = dom.split('<div class="compare" data-setting="TidyHouse">')[1].split('class="cmp-out">')[1].split("</div>")[0]
-    assert "<td>30</td><td>15</td>" in view and re.search(r'class="verdict">[AB] better<', view)
-    # the spec's failure-analysis table, where the episodes carry its diagnostics (the paired TidyHouse rows)
+    # the comparison view opens on the best learned row against the expert that ran its starts (not the first pair)
+    view = dom.split('<div class="compare" data-setting="TidyHouse"')[1].split('class="cmp-out">')[1]
+    view = view.split("<template")[0]
+    assert '<p class="cmp-pair">A: stronger; B: expert</p>' in view
+    cells = re.findall(r"<tr><td>pick</td><td>(\w+)</td>.*?<td>([0-9.]+)</td><td>([0-9.]+)</td>"
+                       r'<td class="verdict">([^<]+)</td></tr>', view)
+    # sugar box: 6 of 30 lost to the expert alone, p = 2 / 2^6 = 0.03125 < 0.05 in the cell, but Holm over the two
+    # cells doubles it; the bowl cell agrees everywhere and is underpowered at n = 30
+    assert cells == [("sugar_box", "0.0312", "0.0625", "B better"), ("bowl", "1", "1", "underpowered")]
+    assert '<p class="cmp-holm">Holm over the 2 cells (family-wise alpha 0.05): A better in none, B better in none.</p>' \
+        in view
+    assert view.count("underpowered") == 1 and view.count("Underpowered") == 1  # the bowl cell; one statement
+    assert "Underpowered in 1 of 2 cells at 30 paired episodes: about 77 paired episodes per cell" in view
+    # the spec's failure analysis, one row per policy and skill over its object cells (the paired TidyHouse rows)
     assert dom.count('<table class="failure-analysis">') == 1
     fa = dom.split('<table class="failure-analysis">')[1].split("</table>")[0]
-    assert "<td>13: knocked 6, hit scene 0, other 7</td><td>0.0120</td><td>1.5</td>" in fa  # F at 15-24, 27-29
+    assert fa.count("<tr>") == 4  # a header, weaker, stronger and the expert: pick, over two objects each
+    # stronger: failures at 24-29 of sugar box, knocked on even episodes; contact speeds 0.012 and 0.020 per cell
+    assert ("<td>stronger</td><td>pick</td><td>2</td><td>60</td><td>6: knocked 3, hit scene 0, other 3</td>"
+            "<td>0.0160 (0.0120-0.0200)</td><td>1.5</td>") in fa
     shot = tmp_path / "leaderboard.png"
     r = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1400,2400",
                         f"--screenshot={shot}", page.as_uri()], capture_output=True, text=True, timeout=120)
@@ -143,16 +202,23 @@ def test_html_renders_in_headless_chromium(spec_results, tmp_path):
 
 
 def _paired_results(tmp_path: Path) -> list[Path]:
-    """Two TidyHouse rows on the same 30 starts: both 15, only B 10, only A 2, neither 3."""
-    outcomes = {"weaker": ["S"] * 15 + ["F"] * 10 + ["S"] * 2 + ["F"] * 3,
-                "stronger": ["S"] * 15 + ["S"] * 10 + ["F"] * 2 + ["F"] * 3}
+    """Three TidyHouse rows on the same 60 starts (pick, sugar box then bowl): the expert succeeds everywhere;
+    "stronger" loses 6 sugar-box episodes; "weaker" loses 13 sugar-box episodes (some by drops) and every bowl one."""
+    outcomes = {"weaker": ["S"] * 15 + ["F"] * 10 + ["S"] * 2 + ["F"] * 3 + ["F"] * 30,
+                "stronger": ["S"] * 24 + ["F"] * 6 + ["S"] * 30,
+                "expert": ["S"] * 60}
     paths = []
     for label, outs in outcomes.items():
-        rows = [{"episode_index": i, "seed": 7 * 1_000_003 + i, "setting": "TidyHouse", "policy": label, "skill": "pick",
-                 "object": "sugar_box", "outcome": o, "cause": "" if o == "S" else "collision", "segments": [],
-                 "mode": "Successful grasp handoff" if o == "S" else "Collision failure",
-                 "diagnostics": {"speed_at_finger_contact_mps": 0.012, "knocked_object": i % 2 == 0, "hit_scene": False,
-                                 "handoff_rotation_deg": 1.5}} for i, o in enumerate(outs)]
+        rows = []
+        for i, o in enumerate(outs):
+            obj = "sugar_box" if i < 30 else "bowl"
+            failure = "Object-drop failure" if label == "weaker" and i in (15, 16) else "Collision failure"
+            rows.append({"episode_index": i, "seed": 7 * 1_000_003 + i, "setting": "TidyHouse", "policy": label,
+                         "skill": "pick", "object": obj, "outcome": o, "cause": "" if o == "S" else "collision",
+                         "segments": [], "mode": "Successful grasp handoff" if o == "S" else failure,
+                         "diagnostics": {"speed_at_finger_contact_mps": 0.012 if obj == "sugar_box" else 0.02,
+                                         "knocked_object": i % 2 == 0, "hit_scene": False,
+                                         "handoff_rotation_deg": 1.5}})
         paths.append(write_results(tmp_path / "paired" / f"{label}.json", summarize(rows, {"seed": 7}, label=label)))
     return paths
 
@@ -162,6 +228,7 @@ def test_repository_leaderboards_are_generated_from_their_results(tmp_path):
     root = Path(__file__).resolve().parents[2] / "leaderboards"
     copy = tmp_path / "leaderboards"  # the same layout, so the page's links to the rows' videos come out the same
     shutil.copytree(root / "results", copy / "results")
+    (copy / "checkpoints").symlink_to(root / "checkpoints")  # the rows' recipes are read from their checkpoints
     results = sorted((copy / "results").glob("*.json"))
     settings = {json.loads(p.read_text())["setting"] for p in results}
     assert settings >= {"TidyHouse", "PrepareGroceries", "PackageDelivery", "LongHorizonRearrangement"}
@@ -220,8 +287,9 @@ def test_the_row_table_says_whether_a_learned_policy_saw_the_evaluation_starts(t
         paths.append(write_results(tmp_path / "results" / f"{policy}.json", results))
     build_leaderboard(paths, tmp_path / "boards")
     rows = (tmp_path / "boards" / "PrepareGroceries.md").read_text().split("| Row |")[1].splitlines()
-    assert "Starts seen in training" in rows[0]
-    column = {r.split("|")[1].strip(): r.split("|")[3].strip() for r in rows[2:] if r.startswith("| ")}
+    assert rows[0].split("|")[8].strip() == "Starts seen in training"
+    column = {r.split("|")[1].strip(): r.split("|")[10].strip() for r in rows[2:] if r.startswith("| ")}
     assert column == {"ACT": "**3 of 4**", "DP": "none (held out)", "PI0": "not traced", "PI05": "-"}
     # the contact solver: results without the key were measured under TGS
-    assert "Contact solver" in rows[0] and all(r.split("|")[5].strip() == "TGS" for r in rows[2:] if r.startswith("| "))
+    assert rows[0].split("|")[6].strip() == "Contact solver"
+    assert all(r.split("|")[8].strip() == "TGS" for r in rows[2:] if r.startswith("| "))

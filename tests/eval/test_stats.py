@@ -5,6 +5,7 @@ import pytest
 from aerobench.eval.stats import (
     fisher_exact,
     format_rate,
+    holm_adjusted,
     mcnemar_exact,
     paired_comparison,
     standard_error,
@@ -40,6 +41,12 @@ def test_mcnemar_exact():
     assert mcnemar_exact(10, 0) == pytest.approx(2 * 0.5**10)
     # 6 vs 2: 2 * P(X <= 2 | n=8, p=.5) = 2 * 37/256
     assert mcnemar_exact(6, 2) == pytest.approx(2 * 37 / 256)
+
+
+def test_holm_adjusted_p_values():
+    # sorted 0.005, 0.01, 0.03, 0.04 of m = 4: x4, x3, x2, x1 = 0.02, 0.03, 0.06, 0.04 -> made non-decreasing: 0.06
+    assert holm_adjusted([0.01, 0.04, 0.03, 0.005]) == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert holm_adjusted([0.5, 0.9]) == [1.0, 1.0] and holm_adjusted([]) == []
 
 
 def test_fisher_exact_known_value():
