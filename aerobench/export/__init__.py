@@ -1,6 +1,6 @@
 """Export: the rollout runner's episodes as a LeRobotDataset v3 with aerobench annotations.
 
-- `depth`: the lossless depth codec (uint16 millimetres packed into an RGB uint8 image: R high byte, G low byte).
+- the depth codec (`aerobench.depth`, re-exported here): uint16 millimetres packed into an RGB uint8 image (R high byte, G low byte, B coarse levels).
 - `features`: the LeRobot feature dict for an episode's shape (cameras or state-only, gripper or arm) and the
   per-frame dicts `add_frame` takes.
 - `sink`: `DatasetSink`, the crash-safe `EpisodeSink` that writes finalized parts and merges them into the root.
