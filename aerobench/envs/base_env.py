@@ -10,6 +10,7 @@ from __future__ import annotations
 import gc
 import os
 
+import numpy as np
 import sapien
 import torch
 from mani_skill.envs.sapien_env import BaseEnv
@@ -17,6 +18,7 @@ from mani_skill.utils.structs.types import SceneConfig, SimConfig
 
 from .agents import AGENT_UIDS, AerialAgent
 from .control.payload import ControllerMode
+from .episode_rng import EpisodeRNG
 from .platforms import CONTROL_HZ, PHYSICS_HZ, get_platform
 from .rendering import DEFAULT_RENDERING, check_rendering, ray_traced_camera_overrides
 
@@ -64,7 +66,10 @@ def freeze_process_heap() -> None:
 
 class AerialEnv(BaseEnv):
     """Base of aerobench envs. Args (besides ManiSkill's): `platform`, `controller`, `physx_solver`, `rendering`
-    ("rasterized" or "ray-traced": every camera through SAPIEN's ray tracer; needs a ray-tracing GPU)."""
+    ("rasterized" or "ray-traced": every camera through SAPIEN's ray tracer; needs a ray-tracing GPU).
+
+    Every random draw of a reset comes from `episode_rng` (`episode_rng.py`: one generator per env, seeded by that
+    env's episode seed), never from torch's global generator, which ManiSkill seeds with env 0's seed only."""
 
     SUPPORTED_ROBOTS = list(AGENT_UIDS.values())
     agent: AerialAgent
@@ -90,6 +95,21 @@ class AerialEnv(BaseEnv):
     def _default_sim_config(self) -> SimConfig:
         return SimConfig(sim_freq=PHYSICS_HZ, control_freq=CONTROL_HZ, spacing=20.0,
                          scene_config=SceneConfig(enable_tgs=self.physx_solver == "tgs"))
+
+    def _set_episode_rng(self, seed, env_idx):
+        """ManiSkill's episode seeds, and each reset env's own generator (`episode_rng`) restarted at its new seed."""
+        super()._set_episode_rng(seed, env_idx)
+        if seed is None and not self._enhanced_determinism:
+            return  # ManiSkill keeps the old episode seeds: each env's stream continues
+        rows = env_idx.tolist() if isinstance(env_idx, torch.Tensor) else np.atleast_1d(env_idx).tolist()
+        seeds = np.atleast_1d(self._episode_seed)
+        if len(seeds) == self.num_envs:
+            seeds = seeds[rows]
+        elif len(seeds) != len(rows):  # a partial reset may give one seed per env it resets
+            raise ValueError(f"{len(seeds)} seeds for a reset of {len(rows)} of {self.num_envs} envs; give one per env")
+        if getattr(self, "episode_rng", None) is None:
+            self.episode_rng = EpisodeRNG(self.num_envs, self.device)
+        self.episode_rng.seed(rows, seeds.tolist())
 
     def _load_agent(self, options: dict, initial_agent_poses=None, build_separate: bool = False):
         super()._load_agent(options, sapien.Pose(), build_separate)

@@ -87,3 +87,49 @@ def check_env(env_id: str, steps: int = 8, obs_mode: str = "state_dict", seed: i
             assert terminated.dtype == torch.bool and terminated.shape == (n,), f"{name}: terminated not (N,) bool"
     finally:
         env.close()
+
+
+def start_key(env_id: str, kwargs: dict, obj: str | None, seed: int) -> str:
+    """The name of one recorded start: env id, its kwargs, the object and the episode seed."""
+    return " ".join([env_id, *(f"{k}={v}" for k, v in sorted(kwargs.items())), f"object={obj}", f"seed={seed}"])
+
+
+def start_record(env, row: int = 0) -> dict:
+    """What the last reset drew for env `row`, as plain JSON values: the target's and each distractor's pose, the
+    drone's joints, each fixture's joints, each goal marker's pose, each evaluator's goal (place goal, nav target,
+    handle, opening, rest height), the fixture it chose, the instruction and whether the start was feasible. A batch
+    and one env reset with the same seed give the same record (docs/gpu.md, "Seeds and starts")."""
+    base = env.unwrapped
+    record: dict = {}
+    if base.target is not None:
+        record["target"] = base.target.pose.raw_pose[row].tolist()
+    for k, actor in enumerate(base.distractors):
+        record[f"distractor_{k}"] = actor.pose.raw_pose[row].tolist()
+    record["drone_qpos"] = base.agent.robot.get_qpos()[row].tolist()
+    for name, fixture in base.built.fixtures.items():
+        record[f"fixture/{name}"] = fixture.get_qpos()[row].tolist()
+    for k, (_, marker) in enumerate(base.goal_markers):
+        record[f"marker_{k}"] = marker.pose.raw_pose[row].tolist()
+    for evaluator in base.evaluators:
+        for name, value in evaluator.privileged_obs().items():
+            record[f"goal/{name}"] = value[row].reshape(-1).tolist()
+        if hasattr(evaluator, "fixture_id"):
+            record[f"fixture_id/{evaluator.skill}"] = int(evaluator.fixture_id[row])
+    record["instruction"] = base.get_instruction(row)
+    record["init_failed"] = bool(base.init_failed[row])
+    return record
+
+
+def start_differences(want: dict, got: dict, tolerance: float) -> list[str]:
+    """Where two `start_record`s differ: a field missing on either side, a number apart by more than `tolerance`,
+    or any other value unequal. Empty when they are the same start."""
+    problems = [f"{name}: only in one record" for name in sorted(want.keys() ^ got.keys())]
+    for name in want.keys() & got.keys():
+        a, b = want[name], got[name]
+        if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+            gap = max((abs(x - y) for x, y in zip(a, b)), default=0.0)
+            if not gap <= tolerance:
+                problems.append(f"{name}: apart by {gap:.3g} (want {a}, got {b})")
+        elif a != b:
+            problems.append(f"{name}: want {a!r}, got {b!r}")
+    return sorted(problems)

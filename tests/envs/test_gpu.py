@@ -36,3 +36,24 @@ def test_skill_envs_batch_on_gpu(env_id, kwargs):
         obs, _, _, _, info = env.step(action)
     assert torch.isfinite(obs["agent"]["state"]).all()
     env.close()
+
+
+@pytest.mark.gpu
+def test_batched_starts_are_the_starts_of_single_envs_with_the_same_seeds():
+    """Each env's start is drawn from its own episode seed (envs/episode_rng.py): row i of a batch reset with seeds
+    [s1..sN] is what one env reset with s_i draws (poses through the sub-scenes' offsets: 1e-4)."""
+    from aerobench.envs.checker import start_differences, start_record
+
+    seeds, objects = [20000063, 7, 11, 20000071], ["bowl", "bowl", "sugar_box", "tuna_fish_can"]
+    env = gym.make("AeroPick-v1", obs_mode="state_dict", sim_backend="physx_cuda", num_envs=4, setting="TidyHouse")
+    env.reset(seed=seeds, options={"reconfigure": True, "objects": objects})
+    batched = [start_record(env, i) for i in range(4)]
+    env.close()
+    one = gym.make("AeroPick-v1", obs_mode="state_dict", sim_backend="physx_cuda", num_envs=1, setting="TidyHouse")
+    try:
+        for i, (seed, obj) in enumerate(zip(seeds, objects)):
+            one.reset(seed=seed, options={"reconfigure": True, "objects": [obj]})
+            problems = start_differences(batched[i], start_record(one), 1e-4)
+            assert not problems, f"row {i} (seed {seed}): " + "; ".join(problems)
+    finally:
+        one.close()

@@ -113,9 +113,10 @@ class ArticulationEvaluator(SkillEvaluator):
     def sample(self, env_idx: torch.Tensor, opens_later: bool = False) -> torch.Tensor:
         """Pick each env's fixture and its starting state: closed to open it, open (q_bar 0.85-1) to close it."""
         m = len(env_idx)
-        self.fixture_id[env_idx] = torch.randint(len(self.names), (m,), device=self.device)
+        self.fixture_id[env_idx] = self.env.episode_rng.randint(len(self.names), env_idx)
         if self.skill == "close" and not opens_later:
-            q_bar = CLOSE_START_Q_BAR[0] + torch.rand(m, device=self.device) * (CLOSE_START_Q_BAR[1] - CLOSE_START_Q_BAR[0])
+            lo, hi = CLOSE_START_Q_BAR
+            q_bar = lo + self.env.episode_rng.rand(env_idx) * (hi - lo)
             for k, fixture in enumerate(self.fixtures):
                 rows = env_idx[self.fixture_id[env_idx] == k]
                 if len(rows):

@@ -207,6 +207,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
                 packed[i, j] = torch.tensor([*s.center, *s.half_size, s.height, s.yaw, kind, 1.0, min(s.clear_height, 1e3)])
         # columns: cx, cy, hx, hy, height, yaw, kind, valid, free height above
         self.supports = packed.to(self.device)
+        self.support_counts = [len(layout.supports) for layout in self.layouts]  # each env's own rows of `supports`
 
     def support_of(self, env: int, index: int) -> Support:
         return self.layouts[env].supports[index]

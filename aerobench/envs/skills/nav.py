@@ -45,7 +45,7 @@ class NavEvaluator(SkillEvaluator):
             if not names:
                 ok[row] = False
                 continue
-            name = names[int(torch.randint(len(names), (1,)))]
+            name = names[int(torch.randint(len(names), (1,), generator=self.env.episode_rng[i]))]
             self.target[i] = torch.tensor(points[name], device=self.device)
             self.target_names[i] = name
         self.named[env_idx] = ok

@@ -124,12 +124,15 @@ class PickEvaluator(SkillEvaluator):
         enclosed_ids = torch.tensor([SUPPORT_KINDS.index(k) for k in ENCLOSED_KINDS], device=self.device)
         enclosed = (row[:, 6][:, None] == enclosed_ids).any(-1)
         inward = row[:, 5] + math.pi
-        yaw = (torch.rand(len(env_idx), device=self.device) * 2 - 1) * math.pi
+        yaw = (env.episode_rng.rand(env_idx) * 2 - 1) * math.pi
         # the closing axis (body y) lies along the object's x: x across the way in
-        noise = (torch.rand(len(env_idx), device=self.device) * 2 - 1) * ENCLOSED_YAW_NOISE_RAD
+        noise = (env.episode_rng.rand(env_idx) * 2 - 1) * ENCLOSED_YAW_NOISE_RAD
         yaw = torch.where(enclosed, inward - math.pi / 2 + noise, yaw)
         if enclosed.any():
-            reachable, fits = self._within_reach_inside(env_idx, row)
+            # only the enclosed envs draw their spot inside: whether an env draws never depends on another env
+            u = torch.zeros(len(env_idx), 2, device=self.device)
+            u[enclosed] = env.episode_rng.rand(env_idx[enclosed], 2)
+            reachable, fits = self._within_reach_inside(env_idx, row, u)
             bottom = torch.where(enclosed[:, None], reachable, bottom)
             ok = ok & (fits | ~enclosed)
         self.enclosed[env_idx], self.inward[env_idx] = enclosed, inward
@@ -140,9 +143,11 @@ class PickEvaluator(SkillEvaluator):
         self.rest_z[env_idx] = bottom[:, 2]
         return ok
 
-    def _within_reach_inside(self, env_idx: torch.Tensor, row: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def _within_reach_inside(self, env_idx: torch.Tensor, row: torch.Tensor,
+                             u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """A point `(M, 3)` on each (fridge-shelf) support row where the arm reaches the object from in front of the
-        fridge (`ENCLOSED_KINDS`), and `(M,)` whether the object fits there at all."""
+        fridge (`ENCLOSED_KINDS`), at uniform draws `u` `(M, 2)` (depth, side), and `(M,)` whether the object fits
+        there at all."""
         env = self.env
         reach, disks, sideways = enclosed_reach_m(env.platform)
         fridge = articulated.get_fixture_spec("fridge")
@@ -161,7 +166,6 @@ class PickEvaluator(SkillEvaluator):
         open_half = env.platform.gripper.max_opening_m / 2 + env.platform.gripper.finger_thickness_m
         side_lo = -inner + torch.maximum(across, open_half - rim) + ENCLOSED_EDGE_MARGIN_M
         side_hi = outer - ENCLOSED_ROTOR_CLEARANCE_M - disks - sideways - rim  # the disks clear of the door's plane
-        u = torch.rand(len(env_idx), 2, device=self.device)
         depth = depth_lo + u[:, 0] * (depth_hi - depth_lo).clamp_min(0.0)
         side = side_lo + u[:, 1] * (side_hi - side_lo).clamp_min(0.0)
         local = torch.stack([front - depth, hinge * side], -1)

@@ -1,8 +1,10 @@
 """Where an episode starts: batched samplers an `AeroSkillEnv` uses in `_sample_episode` (supports, points on them,
 a collision-free drone start near an anchor, the object and the distractors), over the envs being reset.
 
-A mixin of `AeroSkillEnv`: it reads the env's packed supports and boxes (`supports`, `static_boxes`, `built`),
-workspace, platform, agent, distractor actors and start proxy points.
+A mixin of `AeroSkillEnv`: it reads the env's packed supports and boxes (`supports`, `support_counts`,
+`static_boxes`, `built`), workspace, platform, agent, distractor actors and start proxy points. Every random draw comes
+from `episode_rng` (`envs/episode_rng.py`), once per env being reset, so an env's start depends on its episode seed
+only, never on its row or the batch.
 """
 
 from __future__ import annotations
@@ -44,13 +46,18 @@ class EpisodeStarts:
         allowed = (table[..., 7] > 0.5) & (table[..., 6][..., None] == kind_ids).any(-1)
         ok = allowed.any(-1)
         weights = allowed.float() + (~ok)[:, None].float()  # any row stays samplable; ok says whether it is valid
-        return torch.multinomial(weights, 1)[:, 0], ok
+        # each env draws over its own layout's supports, not the batch's padded width (the draw's length is part of
+        # what it takes from the env's stream)
+        widths = [max(self.support_counts[i], 1) for i in env_idx.tolist()]
+        rows = weights.cpu()  # the draws are made on the CPU (`episode_rng`): one copy, not one per env
+        index = self.episode_rng.multinomial(env_idx, [w[:width] for w, width in zip(rows, widths)])
+        return index, ok
 
     def sample_on_support(self, env_idx: torch.Tensor, index: torch.Tensor, margin: torch.Tensor) -> torch.Tensor:
         """A uniform point `(M, 3)` on each chosen support, `margin` `(M,)` inside its edges, at the surface height."""
         row = self.supports[env_idx, index]
         half = (row[:, 2:4] - margin[:, None]).clamp_min(0.0)
-        local = (torch.rand(len(env_idx), 2, device=self.device) * 2 - 1) * half
+        local = (self.episode_rng.rand(env_idx, 2) * 2 - 1) * half
         c, s = torch.cos(row[:, 5]), torch.sin(row[:, 5])
         xy = row[:, 0:2] + torch.stack([c * local[:, 0] - s * local[:, 1], s * local[:, 0] + c * local[:, 1]], -1)
         return torch.cat([xy, row[:, 4:5]], dim=-1)
@@ -92,16 +99,16 @@ class EpisodeStarts:
         """
         m, k = len(env_idx), START_CANDIDATES
         dev = self.device
-        direction = torch.randn(m, k, 3, device=dev)
+        direction = self.episode_rng.randn(env_idx, k, 3)
         direction[..., 2] = direction[..., 2].abs() * 0.6  # starts from level to well above the target
         direction = direction / torch.linalg.norm(direction, dim=-1, keepdim=True)
         if within_cone is not None:  # mirror candidates behind the anchor to its front
             axis, _ = within_cone
             along = (direction * axis[:, None]).sum(-1, keepdim=True)
             direction = torch.where(along < 0, direction - 2 * along * axis[:, None], direction)
-        dist = distance[0] + torch.rand(m, k, 1, device=dev) * (distance[1] - distance[0])
+        dist = distance[0] + self.episode_rng.rand(env_idx, k, 1) * (distance[1] - distance[0])
         tcp = anchor[:, None, :] + dist * direction
-        yaw = (torch.rand(m, k, device=dev) * 2 - 1) * math.pi
+        yaw = (self.episode_rng.rand(env_idx, k) * 2 - 1) * math.pi  # drawn even where overridden: same stream
         offset = torch.tensor(self.platform.grasp_point_m, device=dev)
         if face_anchor:  # the arm reaches forward: look at the anchor
             to_anchor = anchor[:, None, :2] - tcp[..., :2]
@@ -171,5 +178,5 @@ class EpisodeStarts:
                 clear = torch.stack([torch.linalg.norm((point - p)[:, :2], dim=-1) for p in placed]).min(0).values > 0.25
                 best = torch.where((clear & ok)[:, None], point, best)
                 found |= clear & ok
-            self.place_object(actor, env_idx, best, (torch.rand(len(env_idx), device=self.device) * 2 - 1) * math.pi)
+            self.place_object(actor, env_idx, best, (self.episode_rng.rand(env_idx) * 2 - 1) * math.pi)
             placed.append(torch.where(found[:, None], best, nowhere))
