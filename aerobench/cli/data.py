@@ -144,7 +144,7 @@ def _dataset_root(text: str) -> Path:
 
 
 def _run_dataset_info(args) -> int:
-    from ..export.tools import dataset_info, format_info
+    from ..export.info import dataset_info, format_info
 
     try:
         print(format_info(dataset_info(_dataset_root(args.root))))

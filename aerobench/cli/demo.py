@@ -104,7 +104,7 @@ def _demo_dataset(root: Path, episodes: int) -> str:
     import shutil
 
     from ..export import DatasetSink
-    from ..export.tools import dataset_info, format_info
+    from ..export.info import dataset_info, format_info
     from ..rollout.runner import RolloutRunner, RolloutSpec
 
     spec = RolloutSpec(setting="TidyHouse", skills=("pick", "place"), episodes=episodes, seed=0)

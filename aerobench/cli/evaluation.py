@@ -58,9 +58,7 @@ def _run_eval(args) -> int:
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
-        config.needs_images()  # unknown names and bad checkpoints fail before any work
-        config.input_tier()  # and a policy outside --inputs
-        spec = config.rollout_spec(record_cameras=False)
+        spec = config.resolve().spec  # bad names, checkpoints, or a policy outside --inputs fail before any work
         if args.ray is not None:
             from ..rollout.ray_shards import connect
 

@@ -48,7 +48,7 @@ def add_pi_init(sub) -> None:
 
 def _run_pi_init(args) -> int:
     from ..envs.tasks import snake_name
-    from ..export.sink import read_dataset_meta
+    from ..export.layout import read_dataset_meta
     from ..policies.pi_init import PiInitConfig, init_pi
 
     try:

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..envs.tasks import get_setting
+from ..envs.tasks import TaskSetting, get_setting
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
 from ..rollout.records import RecordSink, read_records, run_record_files, unique_records
@@ -58,41 +58,68 @@ class EvalConfig:
         if self.workers > 1 and self.num_envs > 1:
             raise ValueError("--workers splits physx_cpu runs (one env each) into processes; with --num-envs use one")
 
-    def input_tier(self) -> str:
-        """The policy's input tier (the widest of its stage checkpoints'); refuses one outside `inputs`."""
+    def resolve(self) -> ResolvedEval:
+        """Everything an evaluation reads, looked up and checked once (see `ResolvedEval`). Raises a ValueError for an
+        unknown policy or setting, a bad checkpoint, a policy outside `inputs`, or a per-skill mapping without a
+        folder for a skill the policy acts."""
+        from ..policies import policy_needs_images
         from ..policies.registry import check_policy_tier, policy_input_tier
 
-        checkpoints = list(split_checkpoints(self.checkpoint).values())
-        if self.inputs is not None:
-            check_policy_tier(self.policy, checkpoints, self.inputs)
-        return policy_input_tier(self.policy, checkpoints)
-
-    def needs_images(self) -> bool:
-        """Whether the policy (every stage checkpoint of a chain) reads rendered cameras (a blind control does not);
-        also validates name and checkpoint."""
-        from ..policies import policy_needs_images
-
-        reads = any(policy_needs_images(self.policy, c) for c in split_checkpoints(self.checkpoint).values())
-        return reads and not self.blind
-
-    def rollout_spec(self, record_cameras: bool, shard: tuple[int, int] = (0, 1)) -> RolloutSpec:
-        setting = get_setting(self.setting)
-        skills = (resolve_chain(self.setting, self.chain),) if self.chain else tuple(self.skills)
         checkpoints = split_checkpoints(self.checkpoint)
-        learned = [s for s in stage_skills(self.chain) if s != "nav"] if self.chain else skills
-        for skill in learned if self.policy not in ("expert", "random") else ():
+        paths = list(checkpoints.values())
+        # the policy reads rendered cameras if any stage checkpoint does (a blind control reads none); this also
+        # validates name and checkpoints before any other work
+        reads_images = any(policy_needs_images(self.policy, c) for c in paths)
+        if self.inputs is not None:
+            check_policy_tier(self.policy, paths, self.inputs)
+        tier = policy_input_tier(self.policy, paths)  # the widest of the stage checkpoints' tiers
+        setting = get_setting(self.setting)
+        chain = resolve_chain(setting, self.chain) if self.chain else None
+        skills = (chain,) if chain else tuple(self.skills)
+        acted = [s for s in stage_skills(self.chain) if s != "nav"] if self.chain else skills
+        for skill in acted if self.policy not in ("expert", "random") else ():
             checkpoint_for(checkpoints, skill)  # a per-skill mapping names every skill the policy acts
         uses_objects = any(s not in ("nav", "open", "close") for s in skills)
         n_objects = len(self.objects or setting.objects) if uses_objects else 1
         if not (isinstance(self.episodes_per_object, int) and self.episodes_per_object > 0):
             raise ValueError(f"--episodes-per-object must be a positive integer, got {self.episodes_per_object}")
-        return RolloutSpec(
+        spec = RolloutSpec(
             setting=self.setting, skills=skills, objects=tuple(self.objects) if self.objects else None,
             episodes=self.episodes_per_object * n_objects * len(skills), num_envs=self.num_envs, seed=self.seed,
-            policy=self.policy, checkpoint=self.checkpoint, record_cameras=record_cameras, sim_backend=self.sim_backend,
-            max_steps=self.max_steps, chained=bool(self.chain), shard=shard, third_person_episodes=self.video,
-            blind=self.blind,
+            policy=self.policy, checkpoint=self.checkpoint, record_cameras=reads_images and not self.blind,
+            sim_backend=self.sim_backend, max_steps=self.max_steps, chained=bool(self.chain),
+            third_person_episodes=self.video, blind=self.blind,
         )
+        return ResolvedEval(config=self, setting=setting, chain=chain, checkpoints=checkpoints, input_tier=tier,
+                            spec=spec)
+
+
+@dataclass(frozen=True)
+class ResolvedEval:
+    """An evaluation's inputs, resolved once from its `EvalConfig`: the runner, the held-out check, the chain and the
+    results read these instead of looking the setting up or parsing the checkpoint string again.
+
+    Not sent to worker processes (the setting holds mappings pickle refuses): a worker resolves its config once.
+    """
+
+    config: EvalConfig
+    setting: TaskSetting
+    chain: str | None  # the setting's chain the stages name (`--chain pick,transport,place`), or None
+    checkpoints: dict[str, str | None]  # {skill or '*': DIR}: `--checkpoint DIR` or `pick=DIR,place=DIR`
+    input_tier: str  # the policy's input tier (`aerobench.tiers`)
+    spec: RolloutSpec  # every shard's episodes; `shard_spec` gives one shard's
+
+    @property
+    def policy(self) -> str:
+        return self.config.policy
+
+    @property
+    def record_cameras(self) -> bool:
+        """Whether the cameras are rendered for the policy (not for a state-only policy, nor a blind control)."""
+        return self.spec.record_cameras
+
+    def shard_spec(self, shard: tuple[int, int]) -> RolloutSpec:
+        return replace(self.spec, shard=shard)
 
 
 def evaluate(
@@ -106,18 +133,18 @@ def evaluate(
     `out/results.json`; returns the results. With `config.ray`, `on_progress(done, successes, seconds)` hears of
     the episodes of every shard as they finish."""
     out = Path(out)
-    spec = config.rollout_spec(record_cameras=config.needs_images())
-    tier = config.input_tier()
-    held_out = held_out_check(config, spec)
+    plan = config.resolve()
+    spec = plan.spec
+    held_out = held_out_check(plan)
     if config.ray is not None:
         _run_on_ray(config, out, on_progress)
     elif config.workers == 1:
-        run_shard(config, out, (0, 1), on_episode)
+        run_shard(plan, out, (0, 1), on_episode)
     else:
-        _run_in_workers(config, out, on_episode)
+        _run_in_workers(plan, out, on_episode)
     record_files = run_record_files(out, _run_spec(config, spec))  # every shard file, whatever layout wrote it
     provenance = {
-        "policy": config.policy, "checkpoint": _resolved(config.checkpoint),
+        "policy": config.policy, "checkpoint": _resolved(plan.checkpoints),
         "dataset_revision": config.dataset_revision, "seed": config.seed, "skills": list(spec.skills),
         "chain": list(config.chain) if config.chain else None,
         "objects": list(config.objects) if config.objects else None, "episodes_per_object": config.episodes_per_object,
@@ -128,7 +155,7 @@ def evaluate(
         **({"blind": True} if config.blind else {}),
     }
     rows = unique_records(record_files)
-    results = summarize(rows, provenance, label=config.label, inputs=tier)
+    results = summarize(rows, provenance, label=config.label, inputs=plan.input_tier)
     videos = sorted(out.glob("**/videos/*.mp4"))
     if videos:
         results["videos"] = [str(p.relative_to(out)) for p in videos]
@@ -137,19 +164,21 @@ def evaluate(
 
 
 def run_shard(
-    config: EvalConfig, folder: Path, shard: tuple[int, int], on_episode: Callable[[EpisodeData, Progress], None] | None = None
+    plan: ResolvedEval, folder: Path, shard: tuple[int, int],
+    on_episode: Callable[[EpisodeData, Progress], None] | None = None,
 ) -> Path:
     """One shard's episodes into `folder/records.jsonl` (continuing what is there); returns that file."""
-    spec = config.rollout_spec(record_cameras=config.needs_images(), shard=shard)
+    spec = plan.shard_spec(shard)
+    run = _run_spec(plan.config, spec)
     root = folder.parent.parent if folder.parent.name == "shards" else folder
     # an episode another shard file of this run holds (e.g. written under an earlier shard layout) is not run again
-    elsewhere = {int(r["episode_index"]) for f in run_record_files(root, _run_spec(config, spec))
+    elsewhere = {int(r["episode_index"]) for f in run_record_files(root, run)
                  if f.parent != folder for r in read_records(f)}
-    sink = RecordSink(folder, _run_spec(config, spec), recorded_elsewhere=elsewhere)
+    sink = RecordSink(folder, run, recorded_elsewhere=elsewhere)
     videos = folder / "videos"
 
     def after(episode: EpisodeData, progress: Progress) -> None:
-        if episode.record.episode_index < config.video and "rgb/drone_front" in episode.frames:
+        if episode.record.episode_index < plan.config.video and "rgb/drone_front" in episode.frames:
             write_episode_video(episode, videos / f"episode_{episode.record.episode_index:06d}.mp4")
         if on_episode:
             on_episode(episode, progress)
@@ -165,7 +194,7 @@ def _run_spec(config: EvalConfig, spec: RolloutSpec) -> dict:
 
 def _run_shard_in_worker(config: EvalConfig, folder: Path, shard: tuple[int, int]) -> Path:
     with torch_threads():  # one process per core: more threads than cores slow small torch ops many-fold
-        return run_shard(config, folder, shard)
+        return run_shard(config.resolve(), folder, shard)
 
 
 def exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
@@ -192,21 +221,21 @@ def exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
 WORKER_POLL_S = 2.0  # how often the driver counts the workers' finished episodes for its progress bar
 
 
-def _run_in_workers(config: EvalConfig, out: Path, on_episode) -> list[Path]:
+def _run_in_workers(plan: ResolvedEval, out: Path, on_episode) -> list[Path]:
     """Every shard in a worker process (spawned: SAPIEN and torch state is not fork-safe); `on_episode(None,
     progress)` hears of the episodes every shard has finished, counted from their record files while they run."""
     import multiprocessing
     import os
     from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 
+    config, spec = plan.config, plan.spec
     k = config.workers
     out.mkdir(parents=True, exist_ok=True)
     folders = [out / "shards" / f"{i}-of-{k}" for i in range(k)]
     # a worker starts cold (its imports and env: 10-15 s on a 2-core machine): none for a shard with nothing left
-    spec = config.rollout_spec(record_cameras=config.needs_images())
     recorded = {int(r["episode_index"]) for f in run_record_files(out, _run_spec(config, spec)) for r in read_records(f)}
-    pending = [i for i in range(k) if any(plan.index not in recorded for plan in
-                                          shard_plans(config.rollout_spec(record_cameras=spec.record_cameras, shard=(i, k))))]
+    pending = [i for i in range(k)
+               if any(episode.index not in recorded for episode in shard_plans(plan.shard_spec((i, k))))]
     if pending:
         progress = Progress(total=spec.episodes, done=len(recorded))
         with ProcessPoolExecutor(len(pending), mp_context=multiprocessing.get_context("spawn"),
@@ -233,7 +262,7 @@ def _shard_task(config: EvalConfig, folder: str, shard: tuple[int, int], progres
     from ..rollout.ray_shards import episode_reporter
 
     with torch_threads():
-        return str(run_shard(config, Path(folder), shard, on_episode=episode_reporter(progress_actor)))
+        return str(run_shard(config.resolve(), Path(folder), shard, on_episode=episode_reporter(progress_actor)))
 
 
 def _run_on_ray(config: EvalConfig, out: Path, on_progress) -> list[Path]:
@@ -248,14 +277,14 @@ def _run_on_ray(config: EvalConfig, out: Path, on_progress) -> list[Path]:
     return [Path(f) for f in files]
 
 
-def held_out_check(config: EvalConfig, spec: RolloutSpec) -> dict | None:
+def held_out_check(plan: ResolvedEval) -> dict | None:
     """How many planned episodes start where the checkpoint's training data started (None for expert / random).
     Warns on stderr: evaluating with the seed the demonstrations were generated with replays their starts."""
-    if config.policy in ("expert", "random"):
+    if plan.policy in ("expert", "random"):
         return None
-    starts = training_starts(config.policy, config.checkpoint)
-    plans = plan_episodes(spec)
-    seen = seen_in_training(config.setting, plans, starts)
+    starts = training_starts(plan.policy, plan.checkpoints)
+    plans = plan_episodes(plan.spec)
+    seen = seen_in_training(plan.setting, plans, starts)
     if seen:
         print(f"warning: {len(seen)} of {len(plans)} evaluation episodes start where the policy's training episodes "
               f"did ({', '.join(starts.sources)}); pass a --seed the training data was not generated with for "
@@ -266,16 +295,13 @@ def held_out_check(config: EvalConfig, spec: RolloutSpec) -> dict | None:
     return {"episodes": len(seen), "of": len(plans), "sources": starts.sources, "untraced": starts.untraced}
 
 
-def _resolved(checkpoint: str | None) -> str | None:
+def _resolved(checkpoints: dict[str, str | None]) -> str | None:
     """The checkpoint's path (each path of a per-skill `pick=A,place=B` mapping): relative to the working directory
     when it lies inside it (e.g. `leaderboards/checkpoints/...` from the repository root, so a committed results file
     names a checkpoint any clone has), else absolute."""
-    if not checkpoint:
-        return None
-    paths = split_checkpoints(checkpoint)
-    if "*" in paths:
-        return _portable(checkpoint)
-    return ",".join(f"{skill}={_portable(p)}" for skill, p in paths.items())
+    if "*" in checkpoints:
+        return _portable(checkpoints["*"]) if checkpoints["*"] else None
+    return ",".join(f"{skill}={_portable(p)}" for skill, p in checkpoints.items())
 
 
 def _portable(path: str) -> str:

@@ -7,29 +7,28 @@ held out (`policies.provenance` explains how checkpoints carry their training st
 
 from __future__ import annotations
 
-from ..envs.tasks import get_setting
+from ..envs.tasks import TaskSetting
 from ..policies.provenance import TrainingStarts
 from ..policies.registry import policy_training_starts
-from ..rollout.chained import split_checkpoints
 from ..rollout.runner import EpisodePlan
 
 
-def training_starts(policy: str, checkpoint: str | None) -> TrainingStarts:
-    """Everything the policy's checkpoints (each skill's, for a `pick=A,place=B` mapping) trained on."""
+def training_starts(policy: str, checkpoints: dict[str, str | None]) -> TrainingStarts:
+    """Everything the policy's checkpoints (`chained.split_checkpoints`' mapping: one folder, or each skill's for a
+    `pick=A,place=B` mapping) trained on."""
     out = TrainingStarts()
-    if not checkpoint:
-        return out
-    for path in split_checkpoints(checkpoint).values():
-        out.add(policy_training_starts(policy, path))
+    for path in checkpoints.values():
+        if path:
+            out.add(policy_training_starts(policy, path))
     return out
 
 
-def plan_start_skill(setting: str, skill: str) -> str:
+def plan_start_skill(setting: TaskSetting, skill: str) -> str:
     """The skill an episode starts with: itself, or a chain's first stage (its start is that skill's start)."""
-    chains = get_setting(setting).chains
-    return chains[skill][0].skill if skill in chains else skill
+    return setting.chains[skill][0].skill if skill in setting.chains else skill
 
 
-def seen_in_training(setting: str, plans: list[EpisodePlan], starts: TrainingStarts) -> list[int]:
+def seen_in_training(setting: TaskSetting, plans: list[EpisodePlan], starts: TrainingStarts) -> list[int]:
     """Indices of the planned evaluation episodes whose start the policy trained on."""
-    return [p.index for p in plans if starts.seen(setting, plan_start_skill(setting, p.skill), p.object, p.seed)]
+    return [p.index for p in plans
+            if starts.seen(setting.name, plan_start_skill(setting, p.skill), p.object, p.seed)]

@@ -12,6 +12,8 @@ from pathlib import Path
 
 from .. import __version__
 from .features import FPS, VIDEO_BACKEND
+from .info import dataset_info
+from .layout import input_tiers, read_generation_spec
 
 CARD_FILE = "README.md"
 
@@ -41,9 +43,6 @@ def _table(title: str, counts: dict[str, int]) -> list[str]:
 
 def dataset_card(root: str | Path) -> str:
     """The card's Markdown for the dataset at `root`."""
-    from .sink import input_tiers, read_generation_spec
-    from .tools import dataset_info
-
     root = Path(root)
     spec, info = read_generation_spec(root), dataset_info(root)
     spec = {k: "not recorded" for k in ("keep", "policy", "controller", "seed")} | {

@@ -6,36 +6,26 @@ dataset in `root/.aerobench/parts/.tmp-...`, renamed into place only when finish
 A killed run loses at most the buffered episodes and the part being written; `done_indices()` reports the committed
 ones and the runner skips them. `close()` merges all parts into `root` with LeRobot's `aggregate_datasets`.
 
-Layout (docs/datasets.md has the full description):
-
-    root/meta, root/data, root/videos                 the merged LeRobot dataset (after a merge)
-    root/meta/aerobench_episodes.jsonl                one record per dataset episode, in episode order
-    root/meta/aerobench.json                          spec, skill list, event flags, depth encoding, merged parts
-    root/.aerobench/generation.json                   the generation spec (minus "shard")
-    root/.aerobench/parts/part-SSS-FFFFFF-LLLLLL/     one finalized part + aerobench_records.jsonl
-    root/.aerobench/records.jsonl                     every processed episode's record (rebuilt from the parts)
+The folder's layout and its readers are in `layout` (docs/datasets.md has the full description).
 """
 
 from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
 import uuid
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from pathlib import Path
 
-import numpy as np
-
-from .. import tiers
 from ..annotation.record import EpisodeRecord
 from ..depth import DEPTH_ENCODING
 from ..envs.observations import TASK_STATE_VERSION
 from ..envs.tasks import SKILLS
 from ..file_lock import exclusive
 from ..rollout.episode import EVENT_FLAGS, EpisodeData
+from .card import write_dataset_card
 from .features import (
     ANNOTATION_SKILL,
     FPS,
@@ -47,110 +37,43 @@ from .features import (
     robot_type,
 )
 from .language import add_language_columns
+from .layout import (
+    DATASET_META_FILE,
+    EPISODES_FILE,
+    GENERATION_FILE,
+    LEROBOT_DIRS,
+    PART_RECORDS_FILE,
+    RECORDS_FILE,
+    TMP_PREFIX,
+    bookkeeping_dir,
+    canonical_json,
+    completed_parts,
+    input_tiers,
+    part_has_dataset,
+    part_rows,
+    parts_dir,
+    read_dataset_meta,
+    read_generation_spec,
+    read_jsonl,
+    write_atomic,
+    write_jsonl,
+)
 
-BOOKKEEPING_DIR = ".aerobench"
-GENERATION_FILE = "generation.json"
-PARTS_DIR = "parts"
-RECORDS_FILE = "records.jsonl"
-PART_RECORDS_FILE = "aerobench_records.jsonl"
-EPISODES_FILE = "aerobench_episodes.jsonl"  # in root/meta, aligned with the dataset's episode_index
-DATASET_META_FILE = "aerobench.json"  # in root/meta
-TMP_PREFIX = ".tmp-"
 MERGE_DIR = "merge"
 MERGE_READY = "READY"
 LOCK_FILE = "merge.lock"
-LEROBOT_DIRS = ("data", "videos", "meta")
 # A merged part's LeRobot folders are freed meta first: a part without meta/info.json counts as freed, so a crash
 # mid-way never looks like a whole part; its records stay (resume reads them).
 FREE_ORDER = ("meta", "data", "videos")
 SHARD_KEY = "shard"
 PART_REPO_ID = "local/aerobench-part"
-PART_NAME = re.compile(r"^part-(\d+)-(\d+)-(\d+)$")
-# Fields a row adds to an `EpisodeRecord`'s own JSON (part records, records.jsonl, aerobench_episodes.jsonl).
-ROW_FIELDS = ("in_dataset", "dataset_episode_index", "task", "skills", "extra", "part")
 # Encoding one camera per process pays off only with cores to spare; small machines encode in-process.
 PARALLEL_ENCODING_MIN_CPUS = 4
 # SVT-AV1 (LeRobot's default RGB encoder) prints a banner per video at its default log level 3; 1 = errors only.
 SVT_LOG_LEVEL = "1"
 
 
-# ── small file helpers ────────────────────────────────────────────────────────────────────────────────────────
-
-
-def _jsonable(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (set, frozenset)):
-        return sorted(value)
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"{type(value).__name__} is not JSON-serializable")
-
-
-def canonical_json(value):
-    """`value` as JSON reads it back (tuples -> lists, numpy scalars -> Python), for comparisons."""
-    return json.loads(json.dumps(value, default=_jsonable))
-
-
-def read_jsonl(path: Path) -> list[dict]:
-    """All rows of a JSONL file ([] when it does not exist)."""
-    if not path.exists():
-        return []
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f"{TMP_PREFIX}{path.name}-{os.getpid()}-{uuid.uuid4().hex[:8]}")
-    with open(tmp, "w") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
-def write_jsonl(path: Path, rows: list[dict]) -> None:
-    """Write rows atomically (a reader sees the old file or the new one, never half of one)."""
-    _write_atomic(path, "".join(json.dumps(r, sort_keys=True, default=_jsonable) + "\n" for r in rows))
-
-
-def record_from_row(row: dict) -> EpisodeRecord:
-    """The `EpisodeRecord` inside a row of records.jsonl / aerobench_episodes.jsonl."""
-    return EpisodeRecord.from_dict({k: v for k, v in row.items() if k not in ROW_FIELDS})
-
-
-# ── bookkeeping paths ─────────────────────────────────────────────────────────────────────────────────────────
-
-
-def bookkeeping_dir(root: Path) -> Path:
-    return Path(root) / BOOKKEEPING_DIR
-
-
-def parts_dir(root: Path) -> Path:
-    return bookkeeping_dir(root) / PARTS_DIR
-
-
-def _part_key(path: Path) -> tuple[int, int, int]:
-    shard, first, last = PART_NAME.match(path.name).groups()
-    return int(first), int(shard), int(last)
-
-
-def completed_parts(root: Path) -> list[Path]:
-    """Committed parts in merge order (first episode index, then shard); `.tmp-*` folders are not parts."""
-    folder = parts_dir(root)
-    if not folder.is_dir():
-        return []
-    return sorted((p for p in folder.iterdir() if p.is_dir() and PART_NAME.match(p.name)), key=_part_key)
-
-
-def part_rows(part: Path) -> list[dict]:
-    """The records of every episode a part processed (kept or not), each with "in_dataset" and "part"."""
-    return [{**row, "part": part.name} for row in read_jsonl(part / PART_RECORDS_FILE)]
-
-
-def part_has_dataset(part: Path) -> bool:
-    return (part / "meta" / "info.json").is_file()
+# ── bookkeeping ───────────────────────────────────────────────────────────────────────────────────────────────
 
 
 def rebuild_records(root: Path) -> list[dict]:
@@ -196,14 +119,7 @@ def open_root(root: Path, spec: dict) -> None:
     if root.is_dir() and any(root.iterdir()) and not bookkeeping_dir(root).is_dir():
         raise ValueError(f"{root} is not empty and is not an aerobench dataset; choose another --out or delete it")
     parts_dir(root).mkdir(parents=True, exist_ok=True)
-    _write_atomic(generation, json.dumps(wanted, indent=2, sort_keys=True) + "\n")
-
-
-def read_generation_spec(root: Path) -> dict:
-    generation = bookkeeping_dir(root) / GENERATION_FILE
-    if not generation.exists():
-        raise ValueError(f"{root} is not an aerobench dataset folder (no {BOOKKEEPING_DIR}/{GENERATION_FILE})")
-    return json.loads(generation.read_text())
+    write_atomic(generation, json.dumps(wanted, indent=2, sort_keys=True) + "\n")
 
 
 # ── the sink ──────────────────────────────────────────────────────────────────────────────────────────────────
@@ -365,20 +281,6 @@ def _merge_lock(root: Path) -> AbstractContextManager[None]:
     return exclusive(bookkeeping_dir(root) / LOCK_FILE)
 
 
-def read_dataset_meta(root: Path) -> dict | None:
-    """root/meta/aerobench.json of a merged (or filtered) dataset, None when there is none."""
-    path = Path(root) / "meta" / DATASET_META_FILE
-    return json.loads(path.read_text()) if path.exists() else None
-
-
-def dataset_task_state_version(root: Path) -> int:
-    """The `observations.TASK_STATE_VERSION` a dataset was recorded with (1: before versions were recorded)."""
-    meta = read_dataset_meta(root)
-    if meta is None:
-        return TASK_STATE_VERSION  # not written by aerobench's sink: its task state layout was checked by the reader
-    return int(meta.get("generation", {}).get("task_state_version", 1))
-
-
 def _swap_in(root: Path, work: Path) -> None:
     """Move the merged dataset in `work` into `root`. Idempotent: a crash anywhere here is finished by a rerun.
 
@@ -416,13 +318,6 @@ def _check_unique(rows: list[dict]) -> None:
         seen[index] = row["part"]
 
 
-def input_tiers(features: dict) -> dict[str, list[str]]:
-    """Per input tier (`aerobench.tiers`), the dataset's features a policy of that tier may read (the instruction is
-    each frame's `task`)."""
-    readable = [k for k in features if k.startswith(("observation.", "task"))] + [tiers.INSTRUCTION]
-    return {name: [k for k in readable if tier.admits_feature(k)] for name, tier in tiers.TIERS.items()}
-
-
 def dataset_meta(spec: dict, parts: list[str], features: dict | None = None) -> dict:
     """The content of root/meta/aerobench.json: what the integer columns and the packed depth mean, and which features
     each input tier may read."""
@@ -448,8 +343,6 @@ def merge_parts(root: str | Path) -> Path | None:
     dataset. Returns `root`, or None when no episode was kept.
     """
     from lerobot.datasets.aggregate import aggregate_datasets  # heavy import, only when merging
-
-    from .card import write_dataset_card  # the card reads tools.dataset_info, which imports this module
 
     root = Path(root)
     spec = read_generation_spec(root)
@@ -497,9 +390,9 @@ def merge_parts(root: str | Path) -> Path | None:
             out_rows.append({**row, "dataset_episode_index": index})
         write_jsonl(merged_meta / EPISODES_FILE, out_rows)
         meta = dataset_meta(spec, names, merged_info["features"])
-        _write_atomic(merged_meta / DATASET_META_FILE, json.dumps(meta, indent=2) + "\n")
+        write_atomic(merged_meta / DATASET_META_FILE, json.dumps(meta, indent=2) + "\n")
         dirs = [name for name in LEROBOT_DIRS if (work / "dataset" / name).exists()]
-        _write_atomic(work / MERGE_READY, json.dumps({"dirs": dirs}))
+        write_atomic(work / MERGE_READY, json.dumps({"dirs": dirs}))
         _swap_in(root, work)
         _free_merged_parts(root, parts, names)
         rebuild_records(root)

@@ -1,140 +1,32 @@
-"""Dataset tools: what a dataset holds (`dataset_info`, `format_info`), a filtered copy (`filter_dataset`), several
-datasets as one (`join_datasets`), merging shards' parts (`merge`) and reclaiming the parts' disk space
-(`clean_parts`).
+"""Dataset tools: a filtered copy (`filter_dataset`), several datasets as one (`join_datasets`), merging shards'
+parts (`merge`) and reclaiming the parts' disk space (`clean_parts`). What a dataset holds is `info`'s.
 
-`aerobench dataset info DIR` prints `format_info(dataset_info(DIR))`; `aerobench dataset merge DIR` calls `merge(DIR)`;
-`aerobench dataset join A B --out C` calls `join_datasets([A, B], C)`.
+`aerobench dataset merge DIR` calls `merge(DIR)`; `aerobench dataset join A B --out C` calls
+`join_datasets([A, B], C)`.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
-from collections import Counter
 from collections.abc import Iterable
 from pathlib import Path
 
 from ..annotation.record import OUTCOME_CODES
-from .features import LEROBOT_DEFAULT_KEYS, VIDEO_BACKEND
-from .sink import (
+from .features import VIDEO_BACKEND
+from .info import feature_table, lerobot_info
+from .layout import (
     DATASET_META_FILE,
     EPISODES_FILE,
     LEROBOT_DIRS,
-    RECORDS_FILE,
-    bookkeeping_dir,
-    completed_parts,
-    merge_parts,
-    part_has_dataset,
-    part_rows,
     parts_dir,
     read_dataset_meta,
     read_jsonl,
     write_jsonl,
 )
+from .sink import merge_parts
 
-COUNT_FIELDS = ("setting", "skill", "object", "outcome", "mode")
 FILTERED_REPO_ID = "local/aerobench-source"
-
-
-def _lerobot_info(root: Path) -> dict | None:
-    path = root / "meta" / "info.json"
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
-def _feature_table(features: dict) -> dict[str, dict]:
-    return {
-        key: {"dtype": ft["dtype"], "shape": list(ft["shape"])}
-        for key, ft in features.items()
-        if key not in LEROBOT_DEFAULT_KEYS
-    }
-
-
-def dataset_info(root: str | Path) -> dict:
-    """What a dataset folder holds: episode counts by setting, skill, object, outcome and mode, frames, features.
-
-    Counts describe the LeRobot dataset's episodes (root/meta/aerobench_episodes.jsonl); before any merge they come
-    from the parts' records (the episodes that will be in the dataset). "processed" counts every episode the
-    generation handled, kept or not; "unmerged_parts" counts committed parts not yet in the merged dataset.
-    """
-    root = Path(root)
-    info = _lerobot_info(root)
-    parts = completed_parts(root)
-    processed = [row for part in parts for row in part_rows(part)]
-    if not processed:
-        processed = read_jsonl(bookkeeping_dir(root) / RECORDS_FILE)
-    if info is None and not bookkeeping_dir(root).is_dir():
-        raise ValueError(f"{root} is neither a LeRobot dataset (no meta/info.json) nor an aerobench generation folder")
-    merged_parts = set((read_dataset_meta(root) or {}).get("parts", []))
-    warning = None
-    if info is not None:
-        episodes = read_jsonl(root / "meta" / EPISODES_FILE)
-        frames, features = info["total_frames"], info["features"]
-        if len(episodes) != info["total_episodes"]:  # edited by a tool that keeps LeRobot's files only
-            warning = (f"meta/{EPISODES_FILE} {'is missing' if not episodes else 'lists other episodes'} (the dataset "
-                       f"was edited by a tool that keeps LeRobot's files only, e.g. lerobot-edit-dataset): outcome, "
-                       f"mode and object counts are unknown; the per-frame annotation.* columns and the subtask rows "
-                       f"(language_persistent) are intact")
-            episodes = _episodes_from_data(root, info["total_episodes"])
-    else:
-        episodes = [row for row in processed if row["in_dataset"]]
-        frames = sum(int(row["steps"]) for row in episodes)
-        part_info = next((_lerobot_info(p) for p in parts if part_has_dataset(p)), None)
-        features = part_info["features"] if part_info else {}
-        info = part_info or {}
-    return {
-        "root": str(root),
-        "warning": warning,
-        "merged": (root / "meta" / "info.json").is_file(),
-        "episodes": len(episodes),
-        "frames": int(frames),
-        "fps": info.get("fps"),
-        "robot_type": info.get("robot_type"),
-        "processed": len(processed),
-        "not_kept": sum(1 for row in processed if not row["in_dataset"]),
-        "parts": len(parts),
-        "unmerged_parts": sum(1 for p in parts if p.name not in merged_parts),
-        "counts": {name: dict(Counter(str(row[name]) for row in episodes).most_common()) for name in COUNT_FIELDS},
-        "features": _feature_table(features),
-    }
-
-
-def _episodes_from_data(root: Path, total: int) -> list[dict]:
-    """Per episode, what its data columns still say (the skill of its first annotated frame); "unknown" elsewhere."""
-    import pyarrow.parquet as pq
-
-    from ..envs.tasks import SKILLS
-    from .features import ANNOTATION_SKILL
-
-    first: dict[int, int] = {}
-    for path in sorted((root / "data").rglob("*.parquet")):
-        table = pq.read_table(path, columns=["episode_index", ANNOTATION_SKILL])
-        for episode, skill in zip(table.column(0).to_pylist(), table.column(1).to_pylist()):
-            first.setdefault(int(episode), int(skill))
-    return [{"setting": "unknown", "skill": SKILLS[first[e]] if 0 <= first.get(e, -1) < len(SKILLS) else "unknown",
-             "object": "unknown", "outcome": "unknown", "mode": "unknown"} for e in range(total)]
-
-
-def format_info(info: dict) -> str:
-    """`dataset_info`'s dict as a readable plain-text table."""
-    lines = [*([f"warning: {info['warning']}"] if info.get("warning") else []),
-        f"dataset   {info['root']}  ({'merged' if info['merged'] else 'not merged yet'})",
-        f"episodes  {info['episodes']}   frames {info['frames']}   fps {info['fps']}   robot {info['robot_type']}",
-        f"processed {info['processed']} ({info['not_kept']} not kept)   "
-        f"parts {info['parts']} ({info['unmerged_parts']} not merged)",
-        "",
-    ]
-    width = max(len(name) for name in COUNT_FIELDS)
-    for name in COUNT_FIELDS:
-        counts = info["counts"][name]
-        cells = "   ".join(f"{value} {n}" for value, n in counts.items()) or "-"
-        lines.append(f"{name:<{width}}  {cells}")
-    if info["features"]:
-        lines += ["", "features"]
-        key_width = max(len(key) for key in info["features"])
-        for key, ft in info["features"].items():
-            shape = "x".join(str(n) for n in ft["shape"])
-            lines.append(f"  {key:<{key_width}}  {ft['dtype']:<8} {shape}")
-    return "\n".join(lines)
 
 
 def _matches(row: dict, criteria: dict[str, set[str] | None]) -> bool:
@@ -166,7 +58,7 @@ def filter_dataset(
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     src, dst = Path(src_root), Path(dst_root)
-    info = _lerobot_info(src)
+    info = lerobot_info(src)
     if info is None:
         raise ValueError(f"{src} holds no merged LeRobot dataset (run `aerobench dataset merge {src}` first)")
     criteria = {
@@ -222,14 +114,14 @@ def join_datasets(sources: Iterable[str | Path], dst_root: str | Path) -> Path:
         raise ValueError("give at least two datasets to join")
     infos = []
     for src in srcs:
-        info = _lerobot_info(src)
+        info = lerobot_info(src)
         if info is None or not (src / "meta" / EPISODES_FILE).is_file():
             raise ValueError(f"{src} holds no merged aerobench dataset (run `aerobench dataset merge {src}` first)")
         infos.append(info)
-    first = _feature_table(infos[0]["features"])
+    first = feature_table(infos[0]["features"])
     for src, info in zip(srcs[1:], infos[1:]):
-        differ = sorted(k for k in set(first) | set(_feature_table(info["features"]))
-                        if first.get(k) != _feature_table(info["features"]).get(k))
+        differ = sorted(k for k in set(first) | set(feature_table(info["features"]))
+                        if first.get(k) != feature_table(info["features"]).get(k))
         if differ:
             raise ValueError(f"{src} and {srcs[0]} differ in features {', '.join(differ)}; join datasets recorded "
                              f"alike (the same platform, cameras or not)")

@@ -15,7 +15,7 @@ import torch
 
 from ..annotation.failure_analysis import HOLD_MAX_VIOLATIONS, HOLD_RADIUS_M
 from ..envs.checks import FailureCause
-from ..envs.tasks import get_setting
+from ..envs.tasks import TaskSetting, get_setting
 
 TRANSPORT = "transport"  # the protocol's name for a nav stage flown by the shared expert
 # Spec appendix "Failure Analysis", Protocol: pick <= 400 control steps, transport <= 1200, place <= 1000. Open and
@@ -27,15 +27,16 @@ def stage_skills(stages: Sequence[str]) -> tuple[str, ...]:
     return tuple("nav" if s == TRANSPORT else s for s in stages)
 
 
-def resolve_chain(setting: str, stages: Sequence[str]) -> str:
-    """The setting's chain whose stages are `stages` (`transport` names its nav stage), e.g. pick,transport,place."""
-    spec = get_setting(setting)
+def resolve_chain(setting: str | TaskSetting, stages: Sequence[str]) -> str:
+    """The setting's chain whose stages are `stages` (`transport` names its nav stage), e.g. pick,transport,place.
+    `setting` is its name or the setting itself (an evaluation resolves it once)."""
+    spec = get_setting(setting) if isinstance(setting, str) else setting
     wanted = stage_skills(stages)
     for name, chain in spec.chains.items():
         if tuple(s.skill for s in chain) == wanted:
             return name
     valid = [",".join(TRANSPORT if s.skill == "nav" else s.skill for s in chain) for chain in spec.chains.values()]
-    raise ValueError(f"{setting} has no chain {','.join(stages)}; valid --chain values: {'; '.join(valid) or 'none'}")
+    raise ValueError(f"{spec.name} has no chain {','.join(stages)}; valid --chain values: {'; '.join(valid) or 'none'}")
 
 
 def split_checkpoints(checkpoint: str | None) -> dict[str, str | None]:
@@ -62,16 +63,17 @@ def checkpoint_for(checkpoints: dict[str, str | None], skill: str) -> str | None
 
 class ChainedPolicy:
     """The evaluated policy on the skill stages, the shared expert on transport stages, switching as the env's stage
-    pointer advances (the incoming stage's policy is reset for those envs, e.g. clearing an action-chunk queue)."""
+    pointer advances (the incoming stage's policy is reset for those envs, e.g. clearing an action-chunk queue).
+    `checkpoints` is `split_checkpoints`' mapping: {skill or '*': DIR}."""
 
-    def __init__(self, env, policy: str, checkpoint: str | None = None):
+    def __init__(self, env, policy: str, checkpoints: dict[str, str | None] | None = None):
         from ..expert import ExpertController
         from ..policies import make_policy
 
         self.env, self.name = env, policy
         self.skills = [ev.skill for ev in env.evaluators]
         self.expert = ExpertController(env)  # transport; also keeps its stage bookkeeping on every step
-        checkpoints = split_checkpoints(checkpoint)
+        checkpoints = checkpoints if checkpoints is not None else {"*": None}
         self.stage_policies: list = []
         built: dict[str | None, object] = {}
         for skill in self.skills:

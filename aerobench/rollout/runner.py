@@ -13,6 +13,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import gymnasium as gym
 import numpy as np
@@ -112,6 +113,11 @@ class RolloutSpec:
             raise ValueError("a blind evaluation renders no camera: it records none")
         if self.sim_backend == "physx_cpu" and self.num_envs != 1:
             raise ValueError("physx_cpu runs one env per process: use --shard i/k to run several processes")
+
+    @cached_property
+    def checkpoints(self) -> dict[str, str | None]:
+        """`checkpoint` parsed once: {skill or '*': DIR} (`chained.split_checkpoints`)."""
+        return split_checkpoints(self.checkpoint)
 
     @property
     def is_chain(self) -> bool:
@@ -265,10 +271,10 @@ class RolloutRunner:
             options["objects"] = objects
         obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options=options)
         if self.spec.chained:
-            policy = ChainedPolicy(base, self.spec.policy, self.spec.checkpoint)
+            policy = ChainedPolicy(base, self.spec.policy, self.spec.checkpoints)
             monitor = ChainMonitor([ev.skill for ev in base.evaluators], n)
         else:
-            checkpoint = checkpoint_for(split_checkpoints(self.spec.checkpoint), skill)  # one, or one per skill
+            checkpoint = checkpoint_for(self.spec.checkpoints, skill)  # one, or one per skill
             policy, monitor = make_policy(self.spec.policy, base, checkpoint=checkpoint), None
         labeler = make_policy(self.spec.labeler, base) if self.spec.labeler else None
         policy.reset(torch.arange(n, device=base.device))

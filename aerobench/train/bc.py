@@ -34,7 +34,7 @@ from .. import tiers
 from ..envs.observations import STATE_DIM, TASK_STATE_VERSION, task_state_field_names, task_state_fields
 from ..envs.tasks import SKILLS
 from ..export.features import VIDEO_BACKEND
-from ..export.sink import dataset_task_state_version
+from ..export.layout import dataset_task_state_version
 from ..policies.camera_input import as_network_input, random_shift
 from ..policies.egocentric import to_heading_frame, yaw_of
 from ..policies.inputs import InputSpec

@@ -13,14 +13,14 @@ from aerobench.envs.observations import TASK_STATE_VERSION
 from aerobench.envs.tasks import SKILLS
 from aerobench.export import sink as sink_module
 from aerobench.export.features import depth_key, rgb_key
-from aerobench.export.sink import (
+from aerobench.export.layout import (
     EPISODES_FILE,
-    DatasetSink,
     completed_parts,
     dataset_task_state_version,
-    merge_parts,
     read_jsonl,
+    record_from_row,
 )
+from aerobench.export.sink import DatasetSink, merge_parts
 from aerobench.rollout.episode import CAMERAS, EVENT_FLAGS, EpisodeData
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -157,7 +157,7 @@ def test_keep_filter_records_every_episode(tmp_path):
     records = read_jsonl(root / ".aerobench" / "records.jsonl")
     kept = [(r["episode_index"], r["in_dataset"]) for r in records]
     assert kept == [(0, True), (1, False), (2, False), (3, False), (4, False), (5, True)]
-    assert sink_module.record_from_row(records[1]) == make_record(1, steps=STEPS[1], outcome="F", mode="dropped")
+    assert record_from_row(records[1]) == make_record(1, steps=STEPS[1], outcome="F", mode="dropped")
     nothing_kept = root / ".aerobench" / "parts" / "part-000-000002-000003"
     assert [p.name for p in nothing_kept.iterdir()] == ["aerobench_records.jsonl"]
     assert DatasetSink(root, SPEC).done_indices() == set(range(6))

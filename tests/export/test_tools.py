@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from aerobench.export import tools
-from aerobench.export.sink import EPISODES_FILE, DatasetSink, read_jsonl
+from aerobench.export.info import dataset_info, format_info
+from aerobench.export.layout import EPISODES_FILE, read_jsonl
+from aerobench.export.sink import DatasetSink
 
 from .test_sink import SPEC, assert_aligned, load, make_episode
 
@@ -38,7 +40,7 @@ def sharded_root(tmp_path_factory):
     for shard in shards:
         shard.close()  # a shard never merges by itself
     assert not (root / "meta").exists()
-    unmerged = tools.dataset_info(root)
+    unmerged = dataset_info(root)
     assert (unmerged["merged"], unmerged["episodes"], unmerged["unmerged_parts"]) == (False, 6, 4)
     assert tools.merge(root) == root
     return root
@@ -54,7 +56,7 @@ def test_shards_merge_into_one_dataset(sharded_root):
 
 
 def test_dataset_info_counts(sharded_root):
-    info = tools.dataset_info(sharded_root)
+    info = dataset_info(sharded_root)
     assert (info["merged"], info["episodes"], info["processed"], info["not_kept"], info["unmerged_parts"]) == (True, 6, 6, 0, 0)
     assert info["frames"] == sum(make_episode(i).num_frames for i in EPISODES)
     assert info["counts"]["outcome"] == {"S": 3, "F": 2, "T": 1}
@@ -63,7 +65,7 @@ def test_dataset_info_counts(sharded_root):
     assert info["counts"]["setting"] == {"TidyHouse": 6} and info["counts"]["skill"] == {"pick": 6}
     assert info["features"]["observation.state"] == {"dtype": "float32", "shape": [19]}
     assert "observation.images.drone_front" not in info["features"]
-    text = tools.format_info(info)
+    text = format_info(info)
     assert "episodes  6" in text and "S 3   F 2   T 1" in text and "observation.state" in text
 
 
@@ -73,7 +75,7 @@ def test_filter_by_outcome_and_object(sharded_root, tmp_path):
     assert all(r["outcome"] == "S" and r["object"] == "apple" for r in rows)
     meta = json.loads((dst / "meta" / "aerobench.json").read_text())
     assert meta["filter"] == {"outcome": ["S"], "object": ["apple"]} and "parts" not in meta
-    assert tools.dataset_info(dst)["counts"]["outcome"] == {"S": 2}
+    assert dataset_info(dst)["counts"]["outcome"] == {"S": 2}
 
     failures = tools.filter_dataset(sharded_root, tmp_path / "failures", outcomes=["F", "T"])
     assert load(failures).num_episodes == 3
@@ -132,7 +134,7 @@ def test_join_puts_every_episode_of_several_datasets_in_one(sharded_root, tmp_pa
     rows = assert_aligned(joined, [*EPISODES, 1, 3, 5])  # each row still describes its episode, renumbered
     first = sorted(read_jsonl(sharded_root / "meta" / EPISODES_FILE), key=lambda r: r["dataset_episode_index"])
     assert [r["episode_index"] for r in rows] == [r["episode_index"] for r in first] + [1, 3, 5]  # in order
-    assert tools.dataset_info(joined)["counts"]["outcome"] == {"S": 3, "F": 4, "T": 2}
+    assert dataset_info(joined)["counts"]["outcome"] == {"S": 3, "F": 4, "T": 2}
     meta = json.loads((joined / "meta" / "aerobench.json").read_text())
     assert [s["root"] for s in meta["sources"]] == [str(sharded_root), str(failures)] and "parts" not in meta
     assert meta["generation"]["setting"] == "TidyHouse"  # what BC reads the task state version from

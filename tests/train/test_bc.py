@@ -126,7 +126,7 @@ def test_an_evaluation_with_the_generation_seed_is_flagged_as_replaying_training
     def check(seed: int, episodes: int = 2) -> dict:
         config = EvalConfig(policy="bc", setting="TidyHouse", skills=("pick",), objects=("master_chef_can",),
                             episodes_per_object=episodes, checkpoint=str(trained), seed=seed)
-        return held_out_check(config, config.rollout_spec(record_cameras=False))
+        return held_out_check(config.resolve())
 
     assert check(3)["episodes"] == 2  # the dataset's two episodes are seeds 3 * stride + 0 and + 1
     assert "2 of 2 evaluation episodes start where the policy's training episodes did" in capsys.readouterr().err
@@ -135,7 +135,7 @@ def test_an_evaluation_with_the_generation_seed_is_flagged_as_replaying_training
     # another skill with the same seeds does not start where a Pick demonstration did
     config = EvalConfig(policy="bc", setting="TidyHouse", skills=("place",), objects=("master_chef_can",),
                         episodes_per_object=2, checkpoint=str(trained), seed=3)
-    assert held_out_check(config, config.rollout_spec(record_cameras=False))["episodes"] == 0
+    assert held_out_check(config.resolve())["episodes"] == 0
 
 
 def test_a_checkpoint_copied_without_its_data_still_knows_its_training_starts(state_dataset, trained, tmp_path,
@@ -335,7 +335,7 @@ def test_one_checkpoint_per_skill_and_a_missing_one_is_named(trained, tmp_path):
     assert sorted(c["skill"] for c in results["cells"]) == ["pick", "place"]
     assert results["provenance"]["checkpoint"] == f"pick={trained.resolve()},place={trained.resolve()}"
     with pytest.raises(ValueError, match="names no folder for place"):
-        EvalConfig(policy="bc", setting="TidyHouse", skills=("pick", "place"), checkpoint=f"pick={trained}").rollout_spec(False)
+        EvalConfig(policy="bc", setting="TidyHouse", skills=("pick", "place"), checkpoint=f"pick={trained}").resolve()
 
 
 def test_a_policy_sees_at_evaluation_exactly_the_inputs_bc_trained_on(state_dataset, monkeypatch, tmp_path):

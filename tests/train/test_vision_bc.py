@@ -150,7 +150,8 @@ def test_a_blind_evaluation_renders_nothing_and_hands_the_policy_blank_cameras(c
     monkeypatch.setattr(LearnedPolicy, "act", lambda self, obs: seen.append(obs["sensor_data"]) or act(self, obs))
     config = EvalConfig(policy="bc", setting="PrepareGroceries", skills=("place",), objects=("bowl",),
                         episodes_per_object=1, checkpoint=str(ckpt), max_steps=2, seed=11, blind=True)
-    assert not config.needs_images() and config.rollout_spec(record_cameras=False).blind
+    plan = config.resolve()
+    assert not plan.record_cameras and plan.spec.blind
     with torch_threads(1):
         results = evaluate(config, tmp_path / "eval")
     assert results["provenance"]["blind"] is True and len(seen) == 2
