@@ -82,7 +82,7 @@ def _demo_eval(out: Path, per_object: int) -> list[str]:
     import shutil
 
     from ..eval.evaluate import RESULTS_FILE, EvalConfig, evaluate, format_table
-    from ..eval.leaderboard import build_leaderboard
+    from ..eval.leaderboard_folder import build_leaderboard
 
     results = []
     for policy in ("expert", "random"):

@@ -183,7 +183,7 @@ def add_leaderboard(sub) -> None:
 
 
 def _run_leaderboard(args) -> int:
-    from ..eval.leaderboard import build_leaderboard
+    from ..eval.leaderboard_folder import build_leaderboard
 
     try:
         written = build_leaderboard(args.results, args.out)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from aerobench.eval.leaderboard import build_leaderboard
+from aerobench.eval.leaderboard_folder import build_leaderboard
 from aerobench.eval.leaderboard_html import MODE_COLOURS, MODE_FAMILIES
 from aerobench.eval.results import summarize, write_results
 

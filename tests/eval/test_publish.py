@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from aerobench.eval.leaderboard import build_leaderboard
+from aerobench.eval.leaderboard_folder import build_leaderboard
 from aerobench.eval.publish import publish
 from aerobench.eval.results import load_results, summarize, write_results
 from tests.cli_here import aerobench_here
