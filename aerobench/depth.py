@@ -44,6 +44,15 @@ def encode_depth_mm(depth_mm: np.ndarray) -> np.ndarray:
     return packed
 
 
+def pack_depth(depth_mm: torch.Tensor) -> torch.Tensor:
+    """`encode_depth_mm` for a batch on its own device: `(N, H, W)` millimetres (any integer or float dtype, clipped
+    to 0-65535) -> uint8 `(N, H, W, 3)`; no copy to the host (a policy adapter's per-step path on physx_cuda)."""
+    depth = depth_mm.to(torch.int32).clamp(0, 65535)
+    packed = torch.stack([depth >> HIGH_BYTE_SHIFT, depth & LOW_BYTE_MASK,
+                          torch.clamp(depth // LINEAR_STEP_MM, max=UINT8_MAX)], dim=-1)
+    return packed.to(torch.uint8)
+
+
 def _as_uint8_hwc(image: np.ndarray | torch.Tensor) -> np.ndarray:
     """Either uint8 `(..., H, W, 3)` or LeRobot's float `(..., 3, H, W)` in [0, 1] -> uint8 `(..., H, W, 3)`."""
     if isinstance(image, torch.Tensor):

@@ -72,3 +72,16 @@ def test_round_trip_through_a_lerobot_dataset(tmp_path):
     loaded = LeRobotDataset("local/depth", root=root)
     for i, depth in enumerate(depths):
         assert np.array_equal(decode_depth_mm(loaded[i][key]), depth)
+
+
+def test_the_batched_torch_packing_is_the_numpy_one():
+    """`pack_depth` (a policy adapter's per-step form, on the env's device) packs exactly as `encode_depth_mm`."""
+    from aerobench.depth import pack_depth
+
+    depth = torch.tensor([[[0, 19, 20, 255], [256, 5099, 5100, 65535]], [[1, 300, 70000, -5], [10_000, 1, 2, 3]]],
+                         dtype=torch.int32)  # (2, 2, 4), with values out of range on both sides
+    packed = pack_depth(depth)
+    assert packed.dtype == torch.uint8 and packed.shape == (2, 2, 4, 3)
+    for d, p in zip(depth, packed):
+        expected = encode_depth_mm(d.clamp(0, 65535).numpy().astype(np.uint16))
+        assert np.array_equal(p.numpy(), expected)

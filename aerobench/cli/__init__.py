@@ -12,7 +12,7 @@ import sys
 from .common import Parser, UserError, quiet_offline_environment
 from .data import add_dataset, add_generate
 from .demo import add_demo
-from .evaluation import add_compare, add_eval, add_leaderboard, add_plan, add_publish, add_summarize
+from .evaluation import add_compare, add_conditions, add_eval, add_leaderboard, add_plan, add_publish, add_summarize
 from .flight import add_fly, add_render
 from .training import add_pi_init, add_train
 
@@ -28,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_generate(sub)
     add_dataset(sub)
     add_eval(sub)
+    add_conditions(sub)
     add_train(sub)
     add_pi_init(sub)
     add_summarize(sub)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from ..progress import progress_bar, ray_progress_bar
 from .common import Parser, UserError, add_ray_options, parse_csv, parse_shard
+from .evaluation import add_condition_option
 
 
 def add_generate(sub) -> None:
@@ -36,6 +37,7 @@ def add_generate(sub) -> None:
     p.add_argument("--action-noise", type=float, default=0.0,
                    help="DART noise: std of Gaussian noise on the executed flight commands (normalised units, e.g. "
                         "0.05); the dataset records the policy's own actions (docs/datasets.md)")
+    add_condition_option(p)
     p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads of this process (1: each core runs "
                                                           "its own shard; 1.7x faster than 2 with two shards on two "
@@ -57,7 +59,7 @@ def _run_generate(args) -> int:
             num_envs=args.num_envs, seed=args.seed, shard=args.shard, policy=args.policy, checkpoint=args.checkpoint,
             labeler=args.label_with, platform=args.platform,
             controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
-            rendering=args.render, action_noise=args.action_noise,
+            rendering=args.render, action_noise=args.action_noise, condition=args.condition,
         )
         if spec.rendering == "ray-traced" and args.ray is None:
             from ..envs.rendering import require_ray_tracing

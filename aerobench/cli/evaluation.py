@@ -1,4 +1,5 @@
-"""`aerobench eval`, `summarize`, `compare`, `plan` and `leaderboard`: scoring policies and presenting the scores."""
+"""`aerobench eval`, `conditions`, `summarize`, `compare`, `plan` and `leaderboard`: scoring policies and presenting the
+scores."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from .common import UserError, add_ray_options, parse_csv
 
 def add_eval(sub) -> None:
     p = sub.add_parser("eval", help="evaluate a policy per skill x object; writes records.jsonl and results.json")
-    p.add_argument("--policy", required=True, help="a registered policy: expert, random, bc, ppo, act, diffusion, pi0, pi05")
+    p.add_argument("--policy", default=None, help="a registered policy: expert, random, bc, ppo, act, diffusion, pi0, pi05 "
+                   "(required unless --policy-server gives --policy-type)")
     p.add_argument("--checkpoint", default=None,
                    help="checkpoint folder of a trained policy, or one per skill: pick=DIR,place=DIR")
     p.add_argument("--setting", required=True, help="TidyHouse, PrepareGroceries, PackageDelivery, LongHorizonRearrangement")
@@ -40,21 +42,93 @@ def add_eval(sub) -> None:
     p.add_argument("--blind", action="store_true",
                    help="a blind control: the policy gets blank cameras (for a LeRobot policy trained with blanked "
                         "images; docs/training.md); nothing is rendered")
+    add_condition_option(p)
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
     add_ray_options(p)
+    add_realtime_options(p)
     p.set_defaults(func=_run_eval)
+
+
+def add_condition_option(p) -> None:
+    """`--condition NAME[,NAME]` (eval and generate): named evaluation conditions (`aerobench conditions`)."""
+    p.add_argument("--condition", type=parse_csv, default=(), metavar="NAME[,NAME]",
+                   help="run under named evaluation conditions (wind, surface effects, motor lag, sensor noise, "
+                        "payload mismatch; `aerobench conditions` lists them) on the same starts as without")
+
+
+def add_conditions(sub) -> None:
+    p = sub.add_parser("conditions", help="list the named evaluation conditions: name, version, parameters, source")
+    p.set_defaults(func=_run_conditions)
+
+
+def _run_conditions(args) -> int:
+    from ..envs.conditions import describe_conditions
+
+    print("\n".join(describe_conditions()))
+    return 0
+
+
+def add_realtime_options(p) -> None:
+    """Real-time evaluation and LeRobot's remote inference (docs/robustness.md, "Real-time evaluation")."""
+    p.add_argument("--realtime", action="store_true",
+                   help="the simulation keeps stepping while the policy computes: an answer applies ceil(L / 50 ms) "
+                        "control steps after its observation (L: --inference-latency-ms, else each request's own time)")
+    p.add_argument("--inference-latency-ms", type=float, default=None,
+                   help="with --realtime: a fixed inference latency in ms (default: the policy's own, measured)")
+    p.add_argument("--hold", default="last", choices=("last", "hover"),
+                   help="with --realtime: the command while the policy computes: the last one, or hover (zero "
+                        "velocity and yaw rate, gripper and arm as last commanded)")
+    p.add_argument("--schedule", default="sync", choices=("sync", "async"),
+                   help="with --realtime: ask the policy when its actions ran out (sync, LeRobot's select_action), or "
+                        "early enough that its next answer arrives as they run out (async, LeRobot's async inference)")
+    p.add_argument("--policy-server", type=parse_csv, default=None, metavar="HOST:PORT[,HOST:PORT...]",
+                   help="act through LeRobot's PolicyServer (python -m lerobot.async_inference.policy_server) there; "
+                        "one server per --workers worker")
+    p.add_argument("--policy-type", default=None,
+                   help="with --policy-server: the checkpoint's LeRobot policy (act, diffusion, pi0, pi05)")
+    p.add_argument("--policy-device", default="cpu", help="with --policy-server: the device the server runs it on")
+    p.add_argument("--trust-policy-server", action="store_true",
+                   help="allow a --policy-server that is not on this machine: LeRobot's transport unpickles what "
+                        "the server sends, which can run code here, so only for a server you trust")
+
+
+def realtime_settings(args):
+    """(policy name, RealtimeSpec or None, PolicyServerSpec or None) from the eval options; ValueError if they
+    contradict each other."""
+    from ..policies.remote import PolicyServerSpec
+    from ..rollout.realtime import RealtimeSpec
+
+    timed = args.inference_latency_ms is not None or args.hold != "last" or args.schedule != "sync"
+    if timed and not args.realtime:
+        raise ValueError("--inference-latency-ms, --hold and --schedule set up --realtime: add --realtime")
+    realtime = RealtimeSpec(args.inference_latency_ms, args.hold, args.schedule) if args.realtime else None
+    policy = args.policy
+    if args.policy_server is None:
+        if args.policy_type or args.trust_policy_server or args.policy_device != "cpu":
+            raise ValueError("--policy-type, --policy-device and --trust-policy-server go with --policy-server")
+        if policy is None:
+            raise ValueError("give --policy (or --policy-server with --policy-type)")
+        return policy, realtime, None
+    if args.policy_type is None and policy is None:
+        raise ValueError("--policy-server needs --policy-type (act, diffusion, pi0, pi05)")
+    if args.policy_type and policy and args.policy_type != policy:
+        raise ValueError(f"--policy {policy} and --policy-type {args.policy_type} disagree; give one")
+    server = PolicyServerSpec(tuple(args.policy_server), trust=args.trust_policy_server, device=args.policy_device)
+    return args.policy_type or policy, realtime, server
 
 
 def _run_eval(args) -> int:
     from ..eval.evaluate import EvalConfig, evaluate, format_table
 
     try:
+        policy, realtime, server = realtime_settings(args)
         config = EvalConfig(
-            policy=args.policy, setting=args.setting, skills=args.skills, objects=args.objects,
+            policy=policy, setting=args.setting, skills=args.skills, objects=args.objects,
             episodes_per_object=args.episodes_per_object, checkpoint=args.checkpoint, num_envs=args.num_envs,
             seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
             dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
-            ray=args.ray, inputs=args.inputs, blind=args.blind,
+            ray=args.ray, inputs=args.inputs, blind=args.blind, realtime=realtime, policy_server=server,
+            condition=args.condition,
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")
@@ -76,7 +150,7 @@ def _run_eval(args) -> int:
     try:
         results = evaluate(config, args.out, on_episode=on_episode, command="aerobench " + shlex.join(sys.argv[1:]),
                            on_progress=ray_update)
-    except ValueError as e:
+    except (ValueError, ConnectionError) as e:  # ConnectionError: a policy server down or answering garbage
         raise UserError(str(e)) from None
     finally:
         ray_close()

@@ -1,8 +1,9 @@
 """`AerialEnv`: the ManiSkill base class every aerobench env derives from.
 
 It owns what all tasks share: the platform agent (`platform="gripper" | "arm"`), the controller variant
-(`controller="payload-aware" | "nominal"`), the spec's 240 Hz physics / 20 Hz control, and the once-per-control-step
-hand-off of payload signals to the flight controller. Tasks fill the usual ManiSkill hooks.
+(`controller="payload-aware" | "nominal"`), the spec's 240 Hz physics / 20 Hz control, the once-per-control-step
+hand-off of payload signals to the flight controller, and the evaluation condition (`condition=`, `conditions/`).
+Tasks fill the usual ManiSkill hooks.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ from mani_skill.envs.sapien_env import BaseEnv
 from mani_skill.utils.structs.types import SceneConfig, SimConfig
 
 from .agents import AGENT_UIDS, AerialAgent
+from .conditions import ConditionSet, resolve_condition
+from .conditions.runtime import ConditionRuntime
 from .control.payload import ControllerMode
 from .episode_rng import EpisodeRNG
 from .platforms import CONTROL_HZ, PHYSICS_HZ, get_platform
@@ -52,9 +55,12 @@ def freeze_process_heap() -> None:
     reconfigures every episode). Called before the process builds its first scene, when what is alive is imported
     modules and process state that live as long as the process, so freezing them leaks nothing; later collections
     skip them. The compiler's modules are imported first because the first compiled step would load them.
+
+    A process-wide effect, so no env constructor calls it: the processes that own their lifetime and build envs one
+    after another call it (the rollout runner, PPO's envs). `AEROBENCH_FREEZE_HEAP=0` switches it off.
     """
     global _heap_frozen
-    if _heap_frozen:
+    if _heap_frozen or os.environ.get("AEROBENCH_FREEZE_HEAP", "1") == "0":
         return
     _heap_frozen = True
     import torch._dynamo  # noqa: F401 - loaded by the first compiled physics step anyway
@@ -66,16 +72,27 @@ def freeze_process_heap() -> None:
 
 class AerialEnv(BaseEnv):
     """Base of aerobench envs. Args (besides ManiSkill's): `platform`, `controller`, `physx_solver`, `rendering`
-    ("rasterized" or "ray-traced": every camera through SAPIEN's ray tracer; needs a ray-tracing GPU).
+    ("rasterized" or "ray-traced": every camera through SAPIEN's ray tracer; needs a ray-tracing GPU), `condition`
+    (names of evaluation conditions, `conditions.CONDITIONS`, as a tuple or "a,b"; default none: today's physics).
 
     Every random draw of a reset comes from `episode_rng` (`episode_rng.py`: one generator per env, seeded by that
-    env's episode seed), never from torch's global generator, which ManiSkill seeds with env 0's seed only."""
+    env's episode seed), never from torch's global generator, which ManiSkill seeds with env 0's seed only. The
+    conditions draw from their own per-env streams (`conditions.runtime`), never from those."""
 
     SUPPORTED_ROBOTS = list(AGENT_UIDS.values())
     agent: AerialAgent
+    # whether the env has a task observation and a carried object for the sensor and payload conditions to act on
+    supports_task_conditions = False
+    condition_runtime: ConditionRuntime | None = None
 
     def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware",
-                 physx_solver: str | None = None, rendering: str = DEFAULT_RENDERING, **kwargs):
+                 physx_solver: str | None = None, rendering: str = DEFAULT_RENDERING,
+                 condition: str | tuple[str, ...] | None = (), **kwargs):
+        self.condition: ConditionSet | None = resolve_condition(condition)
+        if self.condition is not None and not self.supports_task_conditions and (
+                self.condition.senses or self.condition.payload_mass_scale is not None):
+            raise ValueError(f"{type(self).__name__} has no policy observation or carried object for the sensor and "
+                             f"payload conditions; use them with the skill envs")
         self.platform = get_platform(platform)
         self.physx_solver = check_physx_solver(physx_solver) if physx_solver else default_physx_solver()
         self.rendering = check_rendering(rendering)
@@ -88,7 +105,6 @@ class AerialEnv(BaseEnv):
         kwargs["control_mode"] = self.controller_mode.value.replace("-", "_")
         # SAPIEN renders on the CPU where torch sees no GPU: ManiSkill's default asks for CUDA and warns per env
         kwargs.setdefault("render_backend", "gpu" if torch.cuda.is_available() else "cpu")
-        freeze_process_heap()
         super().__init__(*args, robot_uids=AGENT_UIDS[self.platform.name], **kwargs)
 
     @property
@@ -97,11 +113,15 @@ class AerialEnv(BaseEnv):
                          scene_config=SceneConfig(enable_tgs=self.physx_solver == "tgs"))
 
     def _set_episode_rng(self, seed, env_idx):
-        """ManiSkill's episode seeds, and each reset env's own generator (`episode_rng`) restarted at its new seed."""
+        """ManiSkill's episode seeds, and each reset env's own generator (`episode_rng`) restarted at its new seed;
+        under a condition, its streams restarted too and the new episodes' draws made (`conditions.runtime`)."""
         super()._set_episode_rng(seed, env_idx)
-        if seed is None and not self._enhanced_determinism:
-            return  # ManiSkill keeps the old episode seeds: each env's stream continues
         rows = env_idx.tolist() if isinstance(env_idx, torch.Tensor) else np.atleast_1d(env_idx).tolist()
+        runtime = self._condition_runtime()
+        if seed is None and not self._enhanced_determinism:
+            if runtime is not None:
+                runtime.start_episodes(rows)  # each env's condition streams continue, as `episode_rng`'s do
+            return  # ManiSkill keeps the old episode seeds: each env's stream continues
         seeds = np.atleast_1d(self._episode_seed)
         if len(seeds) == self.num_envs:
             seeds = seeds[rows]
@@ -110,9 +130,29 @@ class AerialEnv(BaseEnv):
         if getattr(self, "episode_rng", None) is None:
             self.episode_rng = EpisodeRNG(self.num_envs, self.device)
         self.episode_rng.seed(rows, seeds.tolist())
+        if runtime is not None:
+            runtime.seed(rows, seeds.tolist())
+            runtime.start_episodes(rows)
+
+    def _condition_runtime(self) -> ConditionRuntime | None:
+        """The condition's runtime (made at the first reset, when the env knows its size and device); None without
+        a condition."""
+        if self.condition is not None and self.condition_runtime is None:
+            self.condition_runtime = ConditionRuntime(self.condition, self.platform, self.num_envs, self.device,
+                                                      self.condition_surfaces)
+        return self.condition_runtime
+
+    def condition_surfaces(self) -> torch.Tensor | None:
+        """The static boxes the surface conditions see (`conditions.proximity`), `(N, B, 8)`; None: a floor at z = 0
+        alone. Skill envs give their layouts' boxes."""
+        return None
 
     def _load_agent(self, options: dict, initial_agent_poses=None, build_separate: bool = False):
         super()._load_agent(options, sapien.Pose(), build_separate)
+        runtime = self._condition_runtime()
+        if runtime is not None and runtime.physics is not None:  # every control mode's body controller runs it
+            for controller in self.agent.controllers.values():
+                controller.controllers["body"].conditioned = runtime.physics
 
     def payload_signals(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
         """(is_grasped, is_set_down, object_mass) for the carried object, `(N,)` each; None when there is no object.
@@ -126,6 +166,8 @@ class AerialEnv(BaseEnv):
         return ""
 
     def _before_control_step(self):
+        if self.condition_runtime is not None:
+            self.condition_runtime.before_control_step(self._elapsed_steps)
         signals = self.payload_signals()
         if signals is not None:
             self.agent.body_controller.update_payload(*signals)

@@ -25,6 +25,7 @@ from lerobot.processor import ObservationProcessorStep, PolicyProcessorPipeline
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from ..depth import encode_depth_mm
+from .conditions import resolve_condition
 from .observations import STATE_DIM, task_state_field_names
 from .platforms import get_platform
 from .tasks import DEFAULT_PLATFORM, SKILLS, get_setting
@@ -153,6 +154,7 @@ def make_lerobot_env(
     object: str | None = None,  # noqa: A002
     platform: str | None = None,
     controller: str = "payload-aware",
+    condition: str | None = None,
 ) -> LeRobotAdapter:
     import aerobench.envs  # noqa: F401  (registers the envs)
 
@@ -164,6 +166,8 @@ def make_lerobot_env(
         kwargs["platform"] = platform
     if episode_length:
         kwargs["max_episode_steps"] = episode_length
+    if condition:
+        kwargs["condition"] = condition
     env = gym.make(env_id, **kwargs)
     return LeRobotAdapter(env, getattr(env, "_max_episode_steps", None) or episode_length or 1000)
 
@@ -177,7 +181,8 @@ class EnvConfigError(Exception):
 @EnvConfig.register_subclass("aerobench")
 @dataclass
 class AerobenchEnvConfig(EnvConfig):
-    """`--env.type=aerobench --env.task=TidyHouse/pick [--env.object=tomato_soup_can] [--env.platform=gripper]`."""
+    """`--env.type=aerobench --env.task=TidyHouse/pick [--env.object=tomato_soup_can] [--env.platform=gripper]
+    [--env.condition=wind_gusty_3ms,motor_lag]` (evaluation conditions, `aerobench conditions`)."""
 
     task: str | None = "TidyHouse/pick"
     fps: int = 20
@@ -185,6 +190,7 @@ class AerobenchEnvConfig(EnvConfig):
     object: str | None = None
     platform: str | None = None
     controller: str = "payload-aware"
+    condition: str | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -194,6 +200,10 @@ class AerobenchEnvConfig(EnvConfig):
             platform = get_platform(self.platform or default_platform(self.task))
         except ValueError as e:
             raise EnvConfigError(f"--env.task / --env.platform: {e}") from None
+        try:
+            resolve_condition(self.condition)
+        except ValueError as e:
+            raise EnvConfigError(f"--env.condition: {e}") from None
         with_arm = platform.arm is not None
         state_dim = STATE_DIM + (6 if with_arm else 0)
         self.features = {
@@ -221,6 +231,7 @@ class AerobenchEnvConfig(EnvConfig):
             "object": self.object,
             "platform": self.platform,
             "controller": self.controller,
+            "condition": self.condition,
         }
 
     def create_envs(self, n_envs: int, use_async_envs: bool = False):

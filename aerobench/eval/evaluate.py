@@ -19,9 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..envs.conditions import resolve_condition
 from ..envs.tasks import TaskSetting, get_setting
+from ..policies.remote import PolicyServerSpec
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
 from ..rollout.episode import CAMERAS, EpisodeData
+from ..rollout.realtime import RealtimeSpec
 from ..rollout.records import RecordSink, read_records, run_record_files, unique_records
 from ..rollout.runner import THIRD_PERSON, Progress, RolloutRunner, RolloutSpec, plan_episodes, shard_plans
 from ..threads import torch_threads
@@ -51,12 +54,22 @@ class EvalConfig:
     ray: str | None = None  # run the shards on Ray: "local" (this machine's cores), "auto" or a head's HOST:PORT
     inputs: str | None = None  # the input tier the evaluation is for (`aerobench.tiers`): a policy outside it is refused
     blind: bool = False  # a blind control: blank cameras instead of rendered ones (`RolloutSpec.blind`)
+    condition: tuple[str, ...] = ()  # named evaluation conditions (`envs.conditions`), on the same starts as nominal
+    realtime: RealtimeSpec | None = None  # real-time evaluation (`rollout.realtime`)
+    policy_server: PolicyServerSpec | None = None  # act through LeRobot's PolicyServer (`policies.remote`)
 
     def __post_init__(self):
         if not (isinstance(self.workers, int) and self.workers >= 1):
             raise ValueError(f"--workers must be a positive integer, got {self.workers}")
         if self.workers > 1 and self.num_envs > 1:
             raise ValueError("--workers splits physx_cpu runs (one env each) into processes; with --num-envs use one")
+        if self.policy_server is not None:
+            if self.ray is not None:
+                raise ValueError("--policy-server runs with --workers (one server per worker), not --ray")
+            if len(self.policy_server.addresses) != self.workers:
+                raise ValueError(f"--policy-server: LeRobot's PolicyServer serves one client at a time, so give one "
+                                 f"server per worker ({self.workers} workers, {len(self.policy_server.addresses)} "
+                                 f"servers)")
 
     def resolve(self) -> ResolvedEval:
         """Everything an evaluation reads, looked up and checked once (see `ResolvedEval`). Raises a ValueError for an
@@ -72,6 +85,11 @@ class EvalConfig:
         reads_images = any(policy_needs_images(self.policy, c) for c in paths)
         if self.inputs is not None:
             check_policy_tier(self.policy, paths, self.inputs)
+        if self.policy_server is not None:  # what LeRobot's server cannot serve is refused before any connection
+            from ..policies.remote import served_config
+
+            for path in paths:
+                served_config(self.policy, path)
         tier = policy_input_tier(self.policy, paths)  # the widest of the stage checkpoints' tiers
         setting = get_setting(self.setting)
         chain = resolve_chain(setting, self.chain) if self.chain else None
@@ -88,7 +106,8 @@ class EvalConfig:
             episodes=self.episodes_per_object * n_objects * len(skills), num_envs=self.num_envs, seed=self.seed,
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=reads_images and not self.blind,
             sim_backend=self.sim_backend, max_steps=self.max_steps, chained=bool(self.chain),
-            third_person_episodes=self.video, blind=self.blind,
+            third_person_episodes=self.video, blind=self.blind, condition=self.condition, realtime=self.realtime,
+            policy_server=self.policy_server,
         )
         return ResolvedEval(config=self, setting=setting, chain=chain, checkpoints=checkpoints, input_tier=tier,
                             spec=spec)
@@ -136,6 +155,10 @@ def evaluate(
     plan = config.resolve()
     spec = plan.spec
     held_out = held_out_check(plan)
+    if config.policy_server is not None:
+        from ..policies.remote import probe
+
+        probe(config.policy_server)  # a server that is down is one line before any env starts
     if config.ray is not None:
         _run_on_ray(config, out, on_progress)
     elif config.workers == 1:
@@ -153,6 +176,9 @@ def evaluate(
         "records": ",".join(str(f.relative_to(out)) for f in record_files),
         "command": command, "seen_in_training": held_out,
         **({"blind": True} if config.blind else {}),
+        **({"conditions": resolve_condition(spec.condition).records()} if spec.condition else {}),
+        **({"realtime": config.realtime.as_dict()} if config.realtime else {}),
+        **({"policy_server": list(config.policy_server.addresses)} if config.policy_server else {}),
     }
     rows = unique_records(record_files)
     results = summarize(rows, provenance, label=config.label, inputs=plan.input_tier)

@@ -58,18 +58,20 @@ def short_labels(results: list[dict]) -> dict[int, str]:
 
 @dataclass(frozen=True)
 class GroupKey:
-    """What makes rows comparable: the same protocol (skills, or a chained protocol), the same starts (`--seed`) and
-    the same contact solver; smoke runs (truncated episodes, one episode per cell) stand apart."""
+    """What makes rows comparable: the same protocol (skills, or a chained protocol), the same starts (`--seed`),
+    the same contact solver and the same evaluation condition (none: today's physics); smoke runs (truncated
+    episodes, one episode per cell) stand apart."""
 
     smoke: bool
     chain: tuple[str, ...]
     skills: tuple[str, ...]
     seed: int | None
     solver: str
+    condition: str = ""  # "wind_gusty_3ms v1" (comma-separated when several); "" without one
 
     def order(self) -> tuple:
         """A total order (a seed may be unknown)."""
-        return self.smoke, self.chain, self.skills, self.seed is None, self.seed or 0, self.solver
+        return self.smoke, self.chain, self.skills, self.seed is None, self.seed or 0, self.solver, self.condition
 
     def title(self) -> str:
         if self.chain:
@@ -79,7 +81,9 @@ class GroupKey:
         else:
             protocol = ", ".join(s.capitalize() for s in self.skills)
         smoke = "smoke / plumbing runs, not comparable: " if self.smoke else ""
-        return f"{smoke}{protocol}; starts of --seed {self.seed if self.seed is not None else '-'}; {self.solver}"
+        condition = f"; condition {self.condition}" if self.condition else ""
+        return (f"{smoke}{protocol}; starts of --seed {self.seed if self.seed is not None else '-'}; {self.solver}"
+                f"{condition}")
 
 
 def group_key(result: dict) -> GroupKey:
@@ -87,7 +91,11 @@ def group_key(result: dict) -> GroupKey:
     rank = {s: i for i, s in enumerate(SKILLS)}
     skills = tuple(sorted({c["skill"] for c in result["cells"] if c["n"]}, key=lambda s: (rank.get(s, 99), s)))
     smoke = provenance.get("max_steps") is not None or max((c["n"] for c in result["cells"]), default=0) <= 1
-    return GroupKey(smoke, tuple(provenance.get("chain") or ()), skills, provenance.get("seed"), solver_text(result))
+    # eval records name, version and parameters; a summary of records keeps the run's names (run.json)
+    condition = ", ".join([f"{c['name']} v{c['version']}" for c in provenance.get("conditions") or ()]
+                          or list(provenance.get("condition") or ()))
+    return GroupKey(smoke, tuple(provenance.get("chain") or ()), skills, provenance.get("seed"), solver_text(result),
+                    condition)
 
 
 def checkpoints_of(result: dict) -> list[list[tuple[str | None, str]]]:

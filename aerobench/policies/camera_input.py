@@ -34,12 +34,12 @@ def reduce_depth(depth_mm: torch.Tensor, size: int) -> torch.Tensor:
 
 
 def camera_images(obs: dict, cameras: tuple[str, ...], size: int) -> dict[str, torch.Tensor]:
-    """Per camera, the policy's uint8 `(N, 4, size, size)` image from an aerobench env observation (on the CPU)."""
+    """Per camera, the policy's uint8 `(N, 4, size, size)` image from an aerobench env observation (on its device)."""
     out = {}
     for cam in cameras:
         data = obs["sensor_data"][cam]
-        rgb = reduce_rgb(data["rgb"].permute(0, 3, 1, 2).cpu(), size)
-        out[cam] = torch.cat([rgb, reduce_depth(data["depth"][..., 0].cpu(), size)], 1)
+        rgb = reduce_rgb(data["rgb"].permute(0, 3, 1, 2), size)
+        out[cam] = torch.cat([rgb, reduce_depth(data["depth"][..., 0], size)], 1)
     return out
 
 

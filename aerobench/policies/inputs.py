@@ -111,7 +111,7 @@ class InputSpec:
         """One frame's inputs `(T, F)` from proprio states `(T, S)`, task states `(T, K)` (the platform follows from
         the proprio size) and, for `yaw_since_start`, each row's episode (or stage) first state `(T, S)`."""
         with_arm = state.shape[-1] > sum(n for _, n in STATE_FIELDS)
-        si, ti = self._indices(with_arm, task_state.shape[-1] if task_state is not None else None)
+        si, ti = (i.to(state.device) for i in self._indices(with_arm, task_state.shape[-1] if task_state is not None else None))
         parts = [state.float()[..., si]]
         if self.ego_fields:
             parts.append(ego_features(state, start_state, self.ego_fields))
@@ -167,7 +167,7 @@ class FrameHistory:
 
     def reset(self, env_idx: torch.Tensor) -> None:
         if self.fresh is not None:
-            self.fresh[env_idx.cpu()] = True
+            self.fresh[env_idx.to(self.fresh.device)] = True
 
     def push(self, frame: torch.Tensor) -> torch.Tensor:
         """Add the current frame `(N, F)` and return the stacked inputs `(N, history * F)`."""
@@ -184,6 +184,6 @@ class FrameHistory:
     def _stacked(self, frame: torch.Tensor) -> torch.Tensor:
         if self.frames is None or self.frames.shape[1] != frame.shape[0]:
             self.frames = frame[None].repeat(self.history, 1, 1)
-            self.fresh = torch.zeros(frame.shape[0], dtype=torch.bool)
+            self.fresh = torch.zeros(frame.shape[0], dtype=torch.bool, device=frame.device)
         fresh = self.fresh[None, :, None]
         return torch.where(fresh, frame[None].expand_as(self.frames), torch.cat([frame[None], self.frames[:-1]]))

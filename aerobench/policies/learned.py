@@ -147,8 +147,15 @@ class Trunk(nn.Module):
             self.words = nn.EmbeddingBag(BUCKETS, self.instruction_dim, mode="mean", padding_idx=0)
             in_dim += self.instruction_dim
         self.mlp = mlp([in_dim, *model["hidden"], out_dim], out_gain)
+        aux_dim = int(model.get("aux_dim", 0))
+        # Training-time targets predicted from the same features (`aerobench train bc --aux-fields`); never an input.
+        self.aux = nn.Linear(in_dim, aux_dim) if aux_dim else None
 
     def forward(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
+        return self.mlp(self.embed(inputs))
+
+    def embed(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The features the MLP reads: the state, each camera's features and the instruction's embedding."""
         parts = [inputs["state"]]
         n = inputs["state"].shape[0]
         if self.cameras:
@@ -160,7 +167,7 @@ class Trunk(nn.Module):
                 parts += list(self.encoder(torch.cat(images, 0)).split(n, 0))
         if self.instruction_dim:
             parts.append(self.words(inputs["instruction"]))
-        return self.mlp(torch.cat(parts, -1))
+        return torch.cat(parts, -1)
 
 
 def make_actor(model: dict) -> Trunk:
@@ -168,15 +175,16 @@ def make_actor(model: dict) -> Trunk:
 
 
 def make_critic(model: dict) -> Trunk:
-    return Trunk(model, 1, out_gain=1.0)
+    return Trunk({**model, "aux_dim": 0}, 1, out_gain=1.0)  # auxiliary targets are the actor's
 
 
 def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs: InputSpec,
                cameras: tuple[str, ...] = (), image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32),
                feature_dim: int = 64, gripper: str = "binary", blind: bool = False, camera_encoder: str = "shared",
-               instruction_dim: int = 0, encoder_head: str = "flatten") -> dict:
+               instruction_dim: int = 0, encoder_head: str = "flatten", aux_dim: int = 0) -> dict:
     """The JSON description of the networks a checkpoint holds (enough to rebuild them). `state_dim` counts the
-    selected input values of all history frames; `instruction_dim` > 0 embeds the instruction (`inputs.instruction`)."""
+    selected input values of all history frames; `instruction_dim` > 0 embeds the instruction (`inputs.instruction`);
+    `aux_dim` > 0 adds a linear head for auxiliary training targets (not read when acting)."""
     unknown = [c for c in cameras if c not in CAMERAS]
     if unknown:
         raise ValueError(f"unknown cameras {unknown}; valid: {', '.join(CAMERAS)}")
@@ -195,7 +203,7 @@ def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs:
     return {"state_dim": state_dim, "action_dim": action_dim, "hidden": list(hidden), "cameras": list(cameras),
             "image_size": image_size, "cnn_channels": list(cnn_channels), "feature_dim": feature_dim,
             "inputs": inputs.as_dict(), "gripper": gripper, "blind": blind, "camera_encoder": camera_encoder,
-            "instruction_dim": instruction_dim, "encoder_head": encoder_head}
+            "instruction_dim": instruction_dim, "encoder_head": encoder_head, "aux_dim": aux_dim}
 
 
 def model_features(model: dict) -> list[str]:
@@ -340,8 +348,11 @@ def load_actor(path: Path) -> tuple[dict, Trunk, Normalizer]:
 
 
 @functools.lru_cache(maxsize=4)
-def _cached_actor(path: Path, mtime_ns: int) -> tuple[dict, Trunk, Normalizer]:
-    return load_actor(path)  # the runner builds a policy per batch: load once per process and checkpoint version
+def _cached_actor(path: Path, mtime_ns: int, device: str = "cpu") -> tuple[dict, Trunk, Normalizer]:
+    """The runner builds a policy per batch: load once per process, checkpoint version and device (the env's, so a
+    control step on physx_cuda never leaves the GPU)."""
+    config, actor, normalizer = load_actor(path)
+    return config, actor.to(device), normalizer.to(device)
 
 
 # ── the policies ──────────────────────────────────────────────────────────────────────────────────────────────────
@@ -356,11 +367,12 @@ class LearnedPolicy:
     def __init__(self, env, checkpoint: str | None = None, **_):
         self.name = self.algorithm
         path, _ = self.checked_config(checkpoint)
-        config, self.actor, self.normalizer = _cached_actor(path, (path / WEIGHTS_FILE).stat().st_mtime_ns)
+        self.device = env.device
+        config, self.actor, self.normalizer = _cached_actor(path, (path / WEIGHTS_FILE).stat().st_mtime_ns,
+                                                            str(self.device))
         model = config["model"]
         self.gripper = model["gripper"]
-        self.observer = ActorObserver(model)
-        self.device = env.device
+        self.observer = ActorObserver(model, self.device)
         self.path, self.state_dim = path, model["state_dim"]
         self.env = env
         self.config = config
@@ -412,7 +424,7 @@ class LearnedPolicy:
     @torch.no_grad()
     def act(self, obs) -> torch.Tensor:
         action = env_action(self.actor(self.observe(obs)), self.normalizer, self.gripper)
-        return self.observer.to_env(action, obs).to(self.device)
+        return self.observer.to_env(action, obs)
 
 
 @register_policy("bc")

@@ -14,11 +14,10 @@ import functools
 import json
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from .. import tiers
-from ..depth import encode_depth_mm
+from ..depth import pack_depth
 from ..envs.observations import task_state_in_layout
 from .provenance import STARTS_FILE, TrainingStarts, dataset_starts, read_starts, recorded_path
 from .registry import register_policy
@@ -99,6 +98,31 @@ def load_policy(path: Path, kind: str):
     return config, model, preprocess, postprocess
 
 
+def lerobot_batch(env, obs, inputs: dict) -> dict:
+    """LeRobot input features `inputs` (a checkpoint's `input_features`) from an aerobench observation `(N, ...)`,
+    plus `task` (the instructions) and `observation.state`; `env` is the unwrapped aerobench env. Local policies and
+    the PolicyServer client (`policies.remote`) build their inputs here."""
+    n = env.num_envs
+    # observation.state is always passed: LeRobot's ACT reads its device even when it is not an input feature
+    out: dict = {"task": [env.get_instruction(i) for i in range(n)], "observation.state": obs["agent"]["state"].float()}
+    for key in inputs:
+        if key == "observation.state":
+            out[key] = obs["agent"]["state"].float()
+        elif key == "observation.environment_state":  # the privileged task state (envs.observations), in the
+            # layout the checkpoint's dataset had (an older one lacks fields added since)
+            width = inputs[key].shape[0]
+            out[key] = task_state_in_layout(env.task_state(), env.platform.arm is not None, width)
+        elif key.startswith("observation.images."):
+            rgb = obs["sensor_data"][key.removeprefix("observation.images.")]["rgb"]
+            out[key] = rgb.permute(0, 3, 1, 2).float() / 255.0
+        elif key.startswith("observation.depth."):
+            depth = obs["sensor_data"][key.removeprefix("observation.depth.")]["depth"][..., 0]
+            out[key] = pack_depth(depth).permute(0, 3, 1, 2).float() / 255.0  # on the env's device
+        else:
+            raise ValueError(f"checkpoint input feature {key!r} is not an aerobench observation")
+    return out
+
+
 class LeRobotPolicy:
     """A LeRobot `PreTrainedPolicy` and its processors, driving a batch of aerobench envs."""
 
@@ -153,34 +177,38 @@ class LeRobotPolicy:
         self.model.reset()  # clears the action-chunk queue (the runner starts a batch's episodes together)
 
     def batch(self, obs) -> dict:
-        """The checkpoint's input features from an aerobench observation `(N, ...)`."""
-        n = self.env.num_envs
-        # observation.state is always passed: LeRobot's ACT reads its device even when it is not an input feature
-        out: dict = {"task": [self.env.get_instruction(i) for i in range(n)], "observation.state": obs["agent"]["state"].float()}
-        for key in self.inputs:
-            if key == "observation.state":
-                out[key] = obs["agent"]["state"].float()
-            elif key == "observation.environment_state":  # the privileged task state (envs.observations), in the
-                # layout the checkpoint's dataset had (an older one lacks fields added since)
-                width = self.inputs[key].shape[0]
-                out[key] = task_state_in_layout(self.env.task_state(), self.env.platform.arm is not None, width)
-            elif key.startswith("observation.images."):
-                rgb = obs["sensor_data"][key.removeprefix("observation.images.")]["rgb"]
-                out[key] = rgb.permute(0, 3, 1, 2).float() / 255.0
-            elif key.startswith("observation.depth."):
-                depth = obs["sensor_data"][key.removeprefix("observation.depth.")]["depth"][..., 0]
-                depth = depth.cpu().numpy().clip(0, 65535).astype(np.uint16)
-                packed = np.stack([encode_depth_mm(d) for d in depth])
-                out[key] = torch.from_numpy(packed).permute(0, 3, 1, 2).float() / 255.0
-            else:
-                raise ValueError(f"checkpoint input feature {key!r} is not an aerobench observation")
-        return out
+        """The checkpoint's input features from an aerobench observation `(N, ...)` (`lerobot_batch`)."""
+        return lerobot_batch(self.env, obs, self.inputs)
 
     @torch.no_grad()
     def act(self, obs) -> torch.Tensor:
         batch = self.preprocess(self.batch(obs))
         action = self.postprocess(self.model.select_action(batch))
         return action.to(self.env.device).float().clamp(-1.0, 1.0)
+
+    @property
+    def chunked(self) -> bool:
+        """Whether `select_action` plays plain chunks of `n_action_steps` from a queue (ACT, pi0, pi0.5), so
+        `act_chunk` gives what it would queue. ACT with temporal ensembling infers at every step instead."""
+        config = self.model.config
+        return config.type != "diffusion" and getattr(config, "temporal_ensemble_coeff", None) is None
+
+    @property
+    def realtime_unsupported(self) -> str | None:
+        """Why real-time evaluation (`rollout.realtime`) cannot time this policy, or None."""
+        if self.model.config.type == "diffusion":
+            return ("--realtime does not model Diffusion Policy: it keeps a history of the observations of every step "
+                    "(n_obs_steps), which a policy that is only asked when it is free does not see")
+        return None
+
+    @torch.no_grad()
+    def act_chunk(self, obs) -> torch.Tensor:
+        """`(N, n, A)`: the `n_action_steps` actions `select_action` would queue from this observation, each
+        unnormalized and clipped as `act` does with the one it returns."""
+        batch = self.preprocess(self.batch(obs))
+        chunk = self.model.predict_action_chunk(batch)[:, : self.model.config.n_action_steps]
+        actions = torch.stack([self.postprocess(chunk[:, i]) for i in range(chunk.shape[1])], dim=1)
+        return actions.to(self.env.device).float().clamp(-1.0, 1.0)
 
 
 def _register(kind: str) -> None:

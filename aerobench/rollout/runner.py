@@ -20,14 +20,17 @@ import numpy as np
 import torch
 
 from ..annotation import EpisodeRecord, categorize, cut_segments
-from ..envs.base_env import check_physx_solver, default_physx_solver
+from ..envs.base_env import check_physx_solver, default_physx_solver, freeze_process_heap
 from ..envs.checker import SKILL_ENV_IDS
+from ..envs.conditions.registry import parse_condition_names, resolve_condition
 from ..envs.rendering import DEFAULT_RENDERING, check_rendering
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
+from ..policies.remote import PolicyServerSpec
 from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, mark_grasp_lost, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 from .noise import ActionNoise, check_action_noise
+from .realtime import RealtimePolicy, RealtimeSpec
 
 THIRD_PERSON = "third_person"
 SEED_STRIDE = 1_000_003  # episode seed = base seed * stride + episode index: distinct streams per base seed
@@ -59,6 +62,9 @@ class RolloutSpec:
     rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
     action_noise: float = 0.0  # DART: executed flight commands get N(0, sigma^2); the recorded action stays clean
+    # named evaluation conditions the envs run under (`envs.conditions`; none: today's physics); the starts are the
+    # same under every condition (the conditions draw from their own streams)
+    condition: tuple[str, ...] = ()
     # DAgger (Ross et al., 2011): `policy` flies, and each frame records this policy's action and phase instead, the
     # correction at the states the flying policy visits ("expert", the one policy that labels states it did not reach)
     labeler: str | None = None
@@ -66,6 +72,10 @@ class RolloutSpec:
     # their shape instead (a LeRobot policy trained with blanked images; aerobench's `train bc --blind` checkpoints
     # blank their own)
     blind: bool = False
+    realtime: RealtimeSpec | None = None  # the simulation keeps stepping while the policy computes (`rollout.realtime`)
+    # the policy acts through LeRobot's PolicyServer (`policies.remote`); where it is served is not part of the run's
+    # identity (`as_dict`): a run resumes against a server restarted elsewhere
+    policy_server: PolicyServerSpec | None = None
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -91,6 +101,8 @@ class RolloutSpec:
         object.__setattr__(self, "physx_solver", check_physx_solver(self.physx_solver))
         object.__setattr__(self, "rendering", check_rendering(self.rendering))
         object.__setattr__(self, "action_noise", check_action_noise(self.action_noise))
+        object.__setattr__(self, "condition", parse_condition_names(self.condition))
+        resolve_condition(self.condition)  # they compose: two that set the same model are one line now, not later
         if self.rendering != DEFAULT_RENDERING and not self.record_cameras:
             raise ValueError(f"{self.rendering} rendering is for the cameras; drop --no-cameras or the --render option")
         i, k = self.shard
@@ -113,6 +125,11 @@ class RolloutSpec:
             raise ValueError("a blind evaluation renders no camera: it records none")
         if self.sim_backend == "physx_cpu" and self.num_envs != 1:
             raise ValueError("physx_cpu runs one env per process: use --shard i/k to run several processes")
+        if self.chained and (self.realtime or self.policy_server):
+            raise ValueError("the chained protocol's expert transport is not timed or served remotely: --realtime and "
+                             "--policy-server evaluate single skills (drop --chain)")
+        if self.policy_server is not None:
+            self.policy_server.address_for(self.shard)  # one server per shard
 
     @cached_property
     def checkpoints(self) -> dict[str, str | None]:
@@ -135,8 +152,10 @@ class RolloutSpec:
             **({"physx_solver": self.physx_solver} if self.physx_solver != "tgs" else {}),
             **({"rendering": self.rendering} if self.rendering != DEFAULT_RENDERING else {}),
             **({"action_noise": self.action_noise} if self.action_noise else {}),
+            **({"condition": list(self.condition)} if self.condition else {}),
             **({"labeler": self.labeler} if self.labeler else {}),
             **({"blind": True} if self.blind else {}),
+            **({"realtime": self.realtime.as_dict()} if self.realtime else {}),
         }
 
 
@@ -226,10 +245,13 @@ class RolloutRunner:
                 kwargs["platform"] = spec.platform
             if spec.max_steps:
                 kwargs["max_episode_steps"] = spec.max_steps
+            if spec.condition:
+                kwargs["condition"] = spec.condition
             if spec.is_chain:
                 env_id, kwargs["chain"] = "AeroSequential-v1", skill
             else:
                 env_id = SKILL_ENV_IDS[skill]
+            freeze_process_heap()  # this process builds env after env: ManiSkill's full collections skip the imports
             self._envs[skill] = gym.make(env_id, **kwargs)
         return self._envs[skill]
 
@@ -260,6 +282,18 @@ class RolloutRunner:
         return progress
 
     # ------------------------------------------------------------------------------------------------------------------
+    def _policy(self, base, checkpoint: str | None):
+        """The acting policy: local, or through LeRobot's PolicyServer; under the real-time wrapper when asked."""
+        spec = self.spec
+        if spec.policy_server is not None:
+            from ..policies.remote import RemotePolicy
+
+            policy = RemotePolicy(base, spec.policy_server.address_for(spec.shard), spec.policy, checkpoint,
+                                  device=spec.policy_server.device)
+        else:
+            policy = make_policy(spec.policy, base, checkpoint=checkpoint)
+        return RealtimePolicy(policy, base, spec.realtime) if spec.realtime is not None else policy
+
     def _run_batch(self, skill: str, plans: list[EpisodePlan]) -> list[EpisodeData]:
         env = self._env(skill)
         base = env.unwrapped
@@ -275,7 +309,7 @@ class RolloutRunner:
             monitor = ChainMonitor([ev.skill for ev in base.evaluators], n)
         else:
             checkpoint = checkpoint_for(self.spec.checkpoints, skill)  # one, or one per skill
-            policy, monitor = make_policy(self.spec.policy, base, checkpoint=checkpoint), None
+            policy, monitor = self._policy(base, checkpoint), None
         labeler = make_policy(self.spec.labeler, base) if self.spec.labeler else None
         policy.reset(torch.arange(n, device=base.device))
         if labeler is not None:
@@ -325,13 +359,18 @@ class RolloutRunner:
             for row in range(len(frames[-1]["_active"])):
                 frames[-1]["_active"][row] = bool(live[row])
         truncated_at |= active  # still running when the budget ran out
-        return [
+        episodes = [
             self._episode(
                 plans[i], i, frames, signals, int(steps[i]), bool(truncated_at[i]), bool(init_failed[i]), tasks[i],
                 evaluators, base, env.spec.id,
             )
             for i in range(len(plans))
         ]
+        if isinstance(policy, RealtimePolicy):  # the latency each episode saw: a summary in its record, per step kept
+            for episode in episodes:
+                episode.extra["realtime"] = policy.summary(episode.record.steps)
+                episode.signals.update(policy.trace(episode.record.steps))
+        return episodes
 
     def _frame(self, obs, action, base, policy, third_person: bool = False) -> dict:
         n = base.num_envs

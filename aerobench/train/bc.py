@@ -37,12 +37,13 @@ from ..export.features import VIDEO_BACKEND
 from ..export.layout import dataset_task_state_version
 from ..policies.camera_input import as_network_input, random_shift
 from ..policies.egocentric import to_heading_frame, yaw_of
-from ..policies.inputs import InputSpec
+from ..policies.inputs import ALL_TASK_FIELDS, InputSpec
 from ..policies.instruction import instruction_tokens
 from ..policies.learned import (
     CAMERA_ENCODERS,
     CAMERAS,
     GRIPPER_MODES,
+    STD_FLOOR,
     Normalizer,
     is_close,
     load_weights,
@@ -132,6 +133,11 @@ class BCConfig:
                               "its maps) or keypoints (spatial softmax: where things are in the image)"})
     cnn_channels: tuple[int, ...] = field(default=(16, 32, 32), metadata={"help": "channels of the camera CNN's "
                                           "stride-2 convolutions"})
+    aux_fields: tuple[str, ...] = field(default=(), metadata={"help": "task state fields the network learns to "
+                                        "predict from its input features beside the actions (an auxiliary loss, at "
+                                        "training time only: the policy never reads them, so its tier is unchanged), "
+                                        "e.g. goal_pos_body: where the marked goal is, seen by a vision policy"})
+    aux_weight: float = field(default=1.0, metadata={"help": "weight of the auxiliary loss (--aux-fields)"})
     save_every: int = field(default=1_000, metadata={"help": "checkpoint every N steps (and at the end)"})
     log_every: int = field(default=50, metadata={"help": "log scalars every N steps"})
     repo_id: str = field(default="local/aerobench", metadata={"help": "LeRobot repo id of the local dataset"})
@@ -170,6 +176,12 @@ class BCConfig:
             raise ValueError(f"--camera-encoder must be one of {', '.join(CAMERA_ENCODERS)}, got {self.camera_encoder!r}")
         if self.shift < 0 or self.feature_dim < 1:
             raise ValueError("--shift must not be negative and --feature-dim must be positive")
+        self.aux_fields = tuple(self.aux_fields)
+        bad = [f for f in self.aux_fields if f not in ALL_TASK_FIELDS]
+        if bad:
+            raise ValueError(f"--aux-fields must name task state fields ({', '.join(ALL_TASK_FIELDS)}), got {bad}")
+        if self.aux_weight < 0:
+            raise ValueError(f"--aux-weight must not be negative, got {self.aux_weight}")
         if self.phase_onset_weight < 1:
             raise ValueError(f"--phase-onset-weight must be at least 1, got {self.phase_onset_weight}")
         if self.gripper_weight < 0 or self.onset_weight < 1:
@@ -205,7 +217,8 @@ class BCConfig:
         return model_spec(state_dim, action_dim, self.hidden, inputs, self.cameras if self.images else (),
                           self.image_size, tuple(self.cnn_channels), feature_dim=self.feature_dim, gripper=self.gripper,
                           blind=self.blind, camera_encoder=self.camera_encoder, encoder_head=self.encoder_head,
-                          instruction_dim=INSTRUCTION_DIM if inputs.instruction else 0)
+                          instruction_dim=INSTRUCTION_DIM if inputs.instruction else 0,
+                          aux_dim=sum(dict(task_state_fields(with_arm=True))[f] for f in self.aux_fields))
 
 
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────
@@ -271,11 +284,12 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
             raise ValueError(f"{root}'s {TASK_STATE_KEY} has another layout than this aerobench's task state "
                              f"(exported by an older aerobench); re-export it with aerobench generate")
         columns.append(TASK_STATE_KEY)
-    if config.skills is not None and TASK_STATE_KEY not in columns:
-        if TASK_STATE_KEY not in ds.features:
-            raise ValueError(f"{root} has no {TASK_STATE_KEY} to tell the stages apart (exported by an older "
-                             f"aerobench); re-export it, or leave out --skills")
-        columns.append(TASK_STATE_KEY)
+    for option, needed in (("--skills", config.skills is not None), ("--aux-fields", bool(config.aux_fields))):
+        if needed and TASK_STATE_KEY not in columns:
+            if TASK_STATE_KEY not in ds.features:
+                raise ValueError(f"{root} has no {TASK_STATE_KEY} for {option} (exported by an older aerobench); "
+                                 f"re-export it, or leave out {option}")
+            columns.append(TASK_STATE_KEY)
     columns += [STAGE_KEY] if STAGE_KEY in ds.features else []
     if config.phase_onset_weight != 1:
         if PHASE_KEY not in ds.features:
@@ -300,6 +314,9 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         action = to_heading_frame(action, yaw_of(state.float()))
     data = {"state": inputs.stack_episodes(frames, segment), "action": action, "segment": segment,
             "index": table["index"][chosen]}
+    if config.aux_fields:  # training targets only: read from the task state, never given to the network
+        aux = InputSpec(task_fields=config.aux_fields, task_state_version=version)
+        data["aux"] = aux.frame(state, table[TASK_STATE_KEY][chosen])
     if inputs.instruction:
         tasks = ds.meta.tasks  # task string -> task_index
         text = {int(i): str(task) for task, i in zip(tasks.index, tasks["task_index"])}
@@ -327,6 +344,8 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         facts["objects"] = list(config.objects)
     if config.skills is not None:
         facts["skills"] = list(config.skills)
+    if config.aux_fields:
+        facts["aux_fields"] = list(config.aux_fields)
     return data, facts
 
 
@@ -422,6 +441,9 @@ def _train_bc(config: BCConfig) -> Path:
     flight_weight = None if config.phase_onset_weight == 1 else \
         phase_onset_weights(data["phase"], data["segment"], config.history, config.phase_onset_weight)
     binary = config.gripper == "binary"
+    if config.aux_fields:  # auxiliary targets, standardized like the actions
+        aux_mean, aux_std = data["aux"].mean(0), data["aux"].std(0, unbiased=False).clamp_min(STD_FLOOR)
+        aux_targets = (data["aux"] - aux_mean) / aux_std
 
     seed_everything(config.seed)
     actor = make_actor(model)
@@ -443,7 +465,7 @@ def _train_bc(config: BCConfig) -> Path:
     log = ScalarLog(out, start)
     bar = _progress(config, start)
     n = len(states)
-    t0, steps_done, loss_sum = time.perf_counter(), 0, 0.0
+    t0, steps_done, loss_sum, aux_sum = time.perf_counter(), 0, 0.0, 0.0
     path = checkpoint
     actor.train()
     for step in range(start + 1, config.steps + 1):
@@ -453,7 +475,8 @@ def _train_bc(config: BCConfig) -> Path:
                                           for cam in cameras}}
         if inputs.instruction:
             batch["instruction"] = data["instruction"][idx]
-        pred = actor(batch)
+        features = actor.embed(batch)
+        pred = actor.mlp(features)
         frame_weight = None if flight_weight is None else flight_weight[idx]
         if binary:  # MSE on the continuous dimensions, weighted cross-entropy on close
             w = close_weight[idx]
@@ -461,6 +484,10 @@ def _train_bc(config: BCConfig) -> Path:
             loss = flight_mse(pred[:, :-1], targets[idx, :-1], frame_weight) + config.gripper_weight * (w * bce).sum() / w.sum()
         else:
             loss = flight_mse(pred, targets[idx], frame_weight)
+        if config.aux_fields:
+            aux_error = actor.aux(features) - aux_targets[idx]
+            loss = loss + config.aux_weight * aux_error.pow(2).mean()
+            aux_sum += (aux_error.detach() * aux_std).pow(2).mean(0)  # squared error in the fields' own units
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -471,9 +498,11 @@ def _train_bc(config: BCConfig) -> Path:
             log.add("losses/bc", loss_sum / steps_done, step)
             log.add("charts/SPS", steps_done / elapsed, step)  # gradient steps per second
             log.add("charts/frames_per_s", steps_done * len(idx) / elapsed, step)
+            if config.aux_fields:  # how well the inputs tell the targets, e.g. the goal's offset in metres
+                log.add("losses/aux_rmse", float((aux_sum / steps_done).mean().sqrt()), step)
             if bar is not None:
                 bar.set_postfix_str(f"loss {loss_sum / steps_done:.4f}")
-            t0, steps_done, loss_sum = time.perf_counter(), 0, 0.0
+            t0, steps_done, loss_sum, aux_sum = time.perf_counter(), 0, 0.0, 0.0
         if step % config.save_every == 0 or step == config.steps:
             log.flush()  # the scalars up to a checkpoint are on disk before it
             path = save(step)

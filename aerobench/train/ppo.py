@@ -256,10 +256,93 @@ def _inputs_at(storage: dict[str, torch.Tensor], index) -> dict[str, torch.Tenso
     return {k: v[index] for k, v in storage.items()}
 
 
+def gae(rewards: torch.Tensor, dones: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor,
+        next_done: torch.Tensor, gamma: float, gae_lambda: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """Generalized advantage estimation over a `(T, N)` window: (advantages, returns)."""
+    T, N = rewards.shape
+    advantages, last = torch.zeros((T, N)), torch.zeros(N)
+    for t in reversed(range(T)):
+        next_nonterminal = 1.0 - (next_done if t == T - 1 else dones[t + 1])
+        next_values = next_value if t == T - 1 else values[t + 1]
+        delta = rewards[t] + gamma * next_values * next_nonterminal - values[t]
+        advantages[t] = last = delta + gamma * gae_lambda * next_nonterminal * last
+    return advantages, advantages + values
+
+
+def ppo_update(config: PPOConfig, batch: dict, actor: nn.Module, critic: nn.Module, log_std: nn.Parameter,
+               optimizer: torch.optim.Optimizer, binary: bool, bc_actor: nn.Module | None, bc_coef: float,
+               warmup: bool) -> dict[str, float]:
+    """`update_epochs` passes of clipped policy and value updates over one window's flat `batch`; returns the mean of
+    each loss statistic. Statistics stay tensors until the end: one host read per epoch (the target-KL check)
+    instead of seven per minibatch."""
+    n = len(batch["logprobs"])
+    minibatch = config.batch_size // config.num_minibatches
+    stats = {k: [] for k in ("policy_loss", "value_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac", "imitation")}
+    for _ in range(config.update_epochs):
+        order = torch.randperm(n)
+        for start in range(0, n, minibatch):
+            mb = order[start : start + minibatch]
+            mb_inputs = _inputs_at(batch["inputs"], mb)
+            pred = actor(mb_inputs)
+            dist = ActionDistribution(pred, log_std, binary)
+            new_logprob, entropy = dist.log_prob(batch["actions"][mb]), dist.entropy()
+            log_ratio = new_logprob - batch["logprobs"][mb]
+            ratio = log_ratio.exp()
+            with torch.no_grad():
+                stats["old_approx_kl"].append((-log_ratio).mean())
+                stats["approx_kl"].append(((ratio - 1) - log_ratio).mean())
+                stats["clipfrac"].append(((ratio - 1.0).abs() > config.clip_coef).float().mean())
+            adv = batch["advantages"][mb]
+            if config.norm_adv and len(mb) > 1:
+                adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+            pg_loss = torch.max(-adv * ratio, -adv * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
+            new_value = critic(mb_inputs)[:, 0]
+            old_value, target = batch["values"][mb], batch["returns"][mb]
+            if config.clip_vloss:
+                clipped = old_value + (new_value - old_value).clamp(-config.clip_coef, config.clip_coef)
+                v_loss = 0.5 * torch.max((new_value - target).pow(2), (clipped - target).pow(2)).mean()
+            else:
+                v_loss = 0.5 * (new_value - target).pow(2).mean()
+            imitation = torch.zeros(())
+            if bc_actor is not None and bc_coef > 0:
+                with torch.no_grad():
+                    teacher = bc_actor(mb_inputs)
+                imitation = imitation_loss(pred, teacher, binary)
+            loss = config.vf_coef * v_loss
+            if not warmup:  # critic warm-up: the BC actor stays as it is while the critic learns its values
+                loss = loss + pg_loss - config.ent_coef * entropy.mean() + bc_coef * imitation
+            optimizer.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_([*actor.parameters(), *critic.parameters(), log_std], config.max_grad_norm)
+            optimizer.step()
+            for name, value in (("policy_loss", pg_loss), ("value_loss", v_loss), ("entropy", entropy.mean()),
+                                ("imitation", imitation)):
+                stats[name].append(value.detach())
+        if config.target_kl is not None and stats["approx_kl"][-1].item() > config.target_kl:
+            break
+    return {name: float(torch.stack(values).double().mean()) for name, values in stats.items()}
+
+
 def train_ppo(config: PPOConfig) -> Path:
     """Train (or resume) PPO; returns the checkpoint folder (`--policy ppo --checkpoint DIR`)."""
     with torch_threads(config.threads):
         return _train_ppo(config)
+
+
+def _resume(config: PPOConfig, out: Path, current: dict) -> tuple[Path | None, dict | None]:
+    """The run's last checkpoint and train state (None, None for a new run), checked against this config."""
+    checkpoint = recover_checkpoint(out)
+    if checkpoint is None:
+        return None, None
+    saved = read_config(checkpoint)
+    if saved["algorithm"] != "ppo":
+        raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
+    # a run saved before `--reward` (or the `--lr-decay-*` options) existed trained with the potential reward (and
+    # a constant learning rate)
+    old_defaults = {"reward": "potential", "lr_decay_steps": 0, "lr_decay_start": 0, "lr_decay_at_success": 0.0,
+                    "lr_decay_length": 0}
+    check_resumable({**old_defaults, **saved["train"]}, current, out, RESUMABLE_CHANGES)
+    return checkpoint, load_train_state(checkpoint, out)
 
 
 def _train_ppo(config: PPOConfig) -> Path:
@@ -267,19 +350,9 @@ def _train_ppo(config: PPOConfig) -> Path:
 
     out = Path(config.out)
     current = config_dict(config)
-    train_state, checkpoint = None, recover_checkpoint(out)
-    if checkpoint is not None:
-        saved = read_config(checkpoint)
-        if saved["algorithm"] != "ppo":
-            raise ValueError(f"{out} holds a {saved['algorithm']} run; choose another --out")
-        # a run saved before `--reward` (or the `--lr-decay-*` options) existed trained with the potential reward (and
-        # a constant learning rate)
-        old_defaults = {"reward": "potential", "lr_decay_steps": 0, "lr_decay_start": 0, "lr_decay_at_success": 0.0,
-                        "lr_decay_length": 0}
-        check_resumable({**old_defaults, **saved["train"]}, current, out, RESUMABLE_CHANGES)
-        train_state = load_train_state(checkpoint, out)
-        if train_state["global_step"] >= config.total_steps:
-            return checkpoint
+    checkpoint, train_state = _resume(config, out, current)
+    if train_state is not None and train_state["global_step"] >= config.total_steps:
+        return checkpoint
     global_step = train_state["global_step"] if train_state else 0
     iteration = train_state["iteration"] if train_state else 0
     episodes_done = train_state["episodes"] if train_state else 0
@@ -392,9 +465,6 @@ def _train_ppo(config: PPOConfig) -> Path:
         window = collect()
         global_step += T * N
         episodes_started = max(episodes_started, window.starts_bound)
-        buf_inputs, actions, logprobs = window.inputs, window.actions, window.logprobs
-        rewards, dones, values = window.rewards, window.dones, window.values
-        next_value, next_done = window.next_value, window.next_done
         for episode in window.episodes:
             episodes_done += 1
             step = window_start + (episode["step"] + 1) * N
@@ -411,71 +481,24 @@ def _train_ppo(config: PPOConfig) -> Path:
             normalizer.state_mean.copy_(obs_rms.mean)
             normalizer.state_std.copy_(obs_rms.var.sqrt().clamp_min(1e-2))
 
-        # ── GAE ──
-        advantages, last = torch.zeros((T, N)), torch.zeros(N)
-        for t in reversed(range(T)):
-            next_nonterminal = 1.0 - (next_done if t == T - 1 else dones[t + 1])
-            next_values = next_value if t == T - 1 else values[t + 1]
-            delta = rewards[t] + config.gamma * next_values * next_nonterminal - values[t]
-            advantages[t] = last = delta + config.gamma * config.gae_lambda * next_nonterminal * last
-        returns = advantages + values
-
-        # ── clipped update ──
-        b = {k: v.reshape(T * N, *v.shape[2:]) for k, v in buf_inputs.items()}
-        b_actions, b_logprobs = actions.reshape(T * N, -1), logprobs.reshape(-1)
-        b_adv, b_returns, b_values = advantages.reshape(-1), returns.reshape(-1), values.reshape(-1)
-        warmup = global_step <= config.critic_warmup_steps
-        bc_coef = config.bc_coef * linear_decay(global_step, config.bc_decay_steps)
-        minibatch = config.batch_size // config.num_minibatches
-        stats = {k: [] for k in ("policy_loss", "value_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac", "imitation")}
-        for _ in range(config.update_epochs):
-            order = torch.randperm(T * N)
-            for start in range(0, T * N, minibatch):
-                mb = order[start : start + minibatch]
-                mb_inputs = _inputs_at(b, mb)
-                pred = actor(mb_inputs)
-                dist = ActionDistribution(pred, log_std, binary)
-                new_logprob, entropy = dist.log_prob(b_actions[mb]), dist.entropy()
-                log_ratio = new_logprob - b_logprobs[mb]
-                ratio = log_ratio.exp()
-                with torch.no_grad():
-                    stats["old_approx_kl"].append((-log_ratio).mean().item())
-                    stats["approx_kl"].append(((ratio - 1) - log_ratio).mean().item())
-                    stats["clipfrac"].append(((ratio - 1.0).abs() > config.clip_coef).float().mean().item())
-                adv = b_adv[mb]
-                if config.norm_adv and len(mb) > 1:
-                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-                pg_loss = torch.max(-adv * ratio, -adv * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
-                new_value = critic(mb_inputs)[:, 0]
-                if config.clip_vloss:
-                    clipped = b_values[mb] + (new_value - b_values[mb]).clamp(-config.clip_coef, config.clip_coef)
-                    v_loss = 0.5 * torch.max((new_value - b_returns[mb]).pow(2), (clipped - b_returns[mb]).pow(2)).mean()
-                else:
-                    v_loss = 0.5 * (new_value - b_returns[mb]).pow(2).mean()
-                imitation = torch.zeros(())
-                if bc_actor is not None and bc_coef > 0:
-                    with torch.no_grad():
-                        teacher = bc_actor(mb_inputs)
-                    imitation = imitation_loss(pred, teacher, binary)
-                loss = config.vf_coef * v_loss
-                if not warmup:  # critic warm-up: the BC actor stays as it is while the critic learns its values
-                    loss = loss + pg_loss - config.ent_coef * entropy.mean() + bc_coef * imitation
-                optimizer.zero_grad()
-                loss.backward()
-                nn.utils.clip_grad_norm_([*actor.parameters(), *critic.parameters(), log_std], config.max_grad_norm)
-                optimizer.step()
-                stats["policy_loss"].append(pg_loss.item())
-                stats["value_loss"].append(v_loss.item())
-                stats["entropy"].append(entropy.mean().item())
-                stats["imitation"].append(imitation.item())
-            if config.target_kl is not None and stats["approx_kl"][-1] > config.target_kl:
-                break
+        # ── GAE, then the clipped update over the window's (T * N) samples ──
+        advantages, returns = gae(window.rewards, window.dones, window.values, window.next_value, window.next_done,
+                                  config.gamma, config.gae_lambda)
+        batch = {"inputs": {k: v.reshape(T * N, *v.shape[2:]) for k, v in window.inputs.items()},
+                 "actions": window.actions.reshape(T * N, -1), "logprobs": window.logprobs.reshape(-1),
+                 "advantages": advantages.reshape(-1), "returns": returns.reshape(-1),
+                 "values": window.values.reshape(-1)}
+        stats = ppo_update(config, batch, actor, critic, log_std, optimizer, binary,
+                           bc_actor,
+                           bc_coef=config.bc_coef * linear_decay(global_step, config.bc_decay_steps),
+                           warmup=global_step <= config.critic_warmup_steps)
+        b_returns, b_values = batch["returns"], batch["values"]
 
         # ── log, checkpoint ──
         var_y = b_returns.var()
         explained = math.nan if var_y == 0 else float(1 - (b_returns - b_values).var() / var_y)
-        for name, vals in stats.items():
-            log.add(f"losses/{name}", sum(vals) / len(vals), global_step)
+        for name, value in stats.items():
+            log.add(f"losses/{name}", value, global_step)
         if math.isfinite(explained):
             log.add("losses/explained_variance", explained, global_step)
         log.add("charts/learning_rate", optimizer.param_groups[0]["lr"], global_step)

@@ -63,6 +63,7 @@ class SkillEnv:
 
         import aerobench.envs  # noqa: F401 - registers the envs (also in a freshly spawned worker process)
 
+        from ..envs.base_env import freeze_process_heap
         from ..envs.checker import SKILL_ENV_IDS
 
         self.config, self.n, self.lane, self.lanes = config, num_envs, lane, lanes
@@ -74,6 +75,7 @@ class SkillEnv:
             kwargs["max_episode_steps"] = config.max_episode_steps
         if config.objects and len(config.objects) == 1:
             kwargs["object"] = config.objects[0]
+        freeze_process_heap()  # a training process resets its envs thousands of times (envs.base_env)
         self.env = gym.make(SKILL_ENV_IDS[config.skill], **kwargs)
         base = self.env.unwrapped
         self.platform, self.task_state, self.device = base.platform, base.task_state, base.device

@@ -54,6 +54,7 @@ class StubStarts(EpisodeStarts):
         self.start_proxy_points = self.proxy_points
         self.setting = SimpleNamespace(pick_supports=PICK_KINDS)
         self.target_specs = [get_object(name) for name in objects]
+        self.condition = None  # no evaluation condition (the target's mass as its class's)
         AeroSkillEnv._object_tensors(self)
         self.target, self.distractors = "target", ["distractor_0", "distractor_1"]
         self.placed: dict[str, dict[int, torch.Tensor]] = {}

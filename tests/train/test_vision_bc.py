@@ -156,3 +156,20 @@ def test_a_blind_evaluation_renders_nothing_and_hands_the_policy_blank_cameras(c
         results = evaluate(config, tmp_path / "eval")
     assert results["provenance"]["blind"] is True and len(seen) == 2
     assert all(int(s[c]["rgb"].abs().sum()) == 0 and s[c]["rgb"].shape == (1, 128, 128, 3) for s in seen for c in s)
+
+
+def test_auxiliary_targets_train_a_head_the_policy_never_reads(camera_dataset, tmp_path):
+    """`--aux-fields goal_pos_body`: the task state is a training target, not an input; the tier stays `vision`."""
+    from aerobench.policies.learned import load_actor
+
+    ckpt = _vision(camera_dataset, tmp_path / "aux", aux_fields=("goal_pos_body",))
+    config = json.loads((ckpt / "config.json").read_text())
+    assert config["inputs_tier"] == "vision" and config["model"]["inputs"]["task_fields"] == []
+    assert config["model"]["aux_dim"] == 3 and config["data"]["aux_fields"] == ["goal_pos_body"]
+    actor = load_actor(ckpt)[1]
+    assert actor.aux.out_features == 3
+    rows = [json.loads(line) for line in (tmp_path / "aux" / "scalars.jsonl").read_text().splitlines()]
+    rmse = [r["value"] for r in rows if r.get("tag") == "losses/aux_rmse"]
+    assert len(rmse) == 3 and all(v > 0 for v in rmse)  # metres: the goal's offset as the inputs tell it
+    with pytest.raises(ValueError, match="--aux-fields must name task state fields"):
+        BCConfig(dataset="d", out="o", inputs="vision", images=True, aux_fields=("goal",))

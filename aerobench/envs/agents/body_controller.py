@@ -2,7 +2,9 @@
 
 At every physics step (240 Hz) it reads the six virtual joints, runs the flight controller, and applies the rotor
 wrench as joint efforts Q = J^T W; on the arm platform it adds the arm servo torques and the arm weight-moment
-feedforward. That per-physics-step work is one fused call (`control.fused`: compiled, no host synchronization).
+feedforward. That per-physics-step work is one fused call (`control.fused`: compiled, no host synchronization);
+under a physical evaluation condition (`conditions`) it is the conditioned step instead, a separate eager path
+(`conditioned`).
 Its action is `[u_x, u_y, u_z, u_psi]` (+ three arm-joint targets) in [-1, 1]; the gripper is a separate ManiSkill
 PD mimic controller combined after it.
 """
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -24,11 +27,16 @@ from ..control.payload import ControllerMode
 from ..control.virtual_joints import AirframeState, joint_columns
 from ..platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PlatformSpec
 
+if TYPE_CHECKING:
+    from ..conditions.physics import ConditionedPhysics
+
 
 class AerialBodyController(BaseController):
     config: AerialBodyControllerConfig
     sets_target_qpos = False
     sets_target_qvel = False
+    # a physical evaluation condition's step (set by the env; None: the fused step of today's physics, untouched)
+    conditioned: ConditionedPhysics | None = None
 
     def __init__(self, config, articulation, control_freq, sim_freq=None, scene=None):
         super().__init__(config, articulation, control_freq, sim_freq=sim_freq, scene=scene)
@@ -137,6 +145,11 @@ class AerialBodyController(BaseController):
         if self.scene.gpu_sim_enabled:  # ManiSkill fetches once per control step; the loop needs every physics step
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
+        if self.conditioned is not None:  # an evaluation condition: its own eager step, apart from the fused one
+            self._conditioned_step()
+            if self.scene.gpu_sim_enabled:
+                px.gpu_apply_articulation_qf()
+            return
         cpu = self._cpu_articulation
         lean = self.telemetry is None and self.leading_joints
         if lean and cpu is not None:
@@ -196,6 +209,25 @@ class AerialBodyController(BaseController):
                 )
         if self.scene.gpu_sim_enabled:
             px.gpu_apply_articulation_qf()
+
+    def _conditioned_step(self) -> None:
+        """The physics step under a physical condition (`conditions.physics`): the same laws and memory, the
+        condition's models between the rotor commands and the wrench; efforts written for the controller's joints."""
+        q_all, qd_all = self.joint_state()
+        m = self.memory
+        inputs = [self.velocity_cmd, self.yaw_rate_cmd, m.xi, m.yaw_des, m.mass_hat, m.k_R, m.k_w, self._needs_yaw_sync]
+        if self.arm is not None:
+            inputs += [self.arm_target, self.contact_mode]
+        efforts, m.xi, m.yaw_des = self.conditioned.efforts(
+            self.step_fn, q_all[:, self._joints], qd_all[:, self._joints], inputs)
+        self._needs_yaw_sync.zero_()
+        self._yaw_sync_pending = False
+        qf = torch.zeros_like(q_all)  # the finger joints are PhysX-driven and take no effort from here
+        qf[:, self._joints] = efforts
+        if self._cpu_articulation is not None:
+            self._cpu_articulation.set_qf(qf.numpy()[0])
+        else:
+            self.articulation.set_qf(qf)
 
     @property
     def last_output(self) -> FlightOutput | None:

@@ -9,7 +9,9 @@ own, latches failures, and hands the payload / contact-mode switches to the flig
 Args (besides ManiSkill's `num_envs`, `obs_mode`, `sim_backend`, ...): `setting` (TidyHouse | PrepareGroceries |
 PackageDelivery | LongHorizonRearrangement), `object` (one of the setting's objects; default: sampled per env),
 `platform` (gripper | arm; default per skill), `controller` (payload-aware | nominal), `num_distractors`,
-`real_assets` ("ycb": YCB meshes for the objects) and `assets_dir` (see `assets.py`). `reset(options=...)` takes
+`real_assets` ("ycb": YCB meshes for the objects), `assets_dir` (see `assets.py`) and `condition` (evaluation
+conditions, `conditions/`: every kind applies here, the sensor ones to the proprioceptive and task state, the payload
+ones to the target object's built mass). `reset(options=...)` takes
 `"object"` or `"objects"` (one per env) with `"reconfigure": True` to choose the objects of the next layout.
 On one CPU env the layout is regenerated every episode; with parallel envs (GPU) each env keeps its layout until
 `reset(options={"reconfigure": True})` (ManiSkill's `reconfiguration_freq` overrides either default).
@@ -18,7 +20,7 @@ On one CPU env the layout is regenerated every episode; with parallel envs (GPU)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import sapien
@@ -31,6 +33,7 @@ from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
 from ..assets import YCB_IDS, parse_real_assets, replicacad_dir, ycb_model_dir
 from ..base_env import AerialEnv
 from ..checks import FailureCause, SafetyLimits, verdict_kernel
+from ..conditions.sensors import proprio_with_estimate
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
 from ..control.virtual_joints import AirframeState
@@ -88,6 +91,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
     skill: str = ""
     uses_object = True
     safety = SafetyLimits()
+    supports_task_conditions = True
 
     def __init__(
         self,
@@ -147,8 +151,10 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
                 for name in requested:
                     self.setting.check_object(name)
             names = list(requested) if requested else [self.object_name or str(rng.choice(self.setting.objects)) for rng in rngs]
-            self.target_specs = [get_object(n) for n in names]
-            self.target = self._build_per_env(self.target_specs, "target")
+            self.target_specs = [get_object(n) for n in names]  # the classes' nominal masses (what the controller knows)
+            scale = self.condition.payload_mass_scale if self.condition is not None else None
+            built = [replace(s, mass_kg=s.mass_kg * scale) for s in self.target_specs] if scale else self.target_specs
+            self.target = self._build_per_env(built, "target")
             for slot in range(self.num_distractors):
                 others = [[o for o in self.setting.objects if o != n] or [n] for n in names]
                 specs = [get_object(str(rng.choice(pool))) for rng, pool in zip(rngs, others)]
@@ -189,6 +195,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
         specs = self.target_specs
         self.target_mass = t([s.mass_kg for s in specs])
+        # the mass the simulation gives it (a payload condition scales it; the controller is fed `target_mass`)
+        scale = self.condition.payload_mass_scale if self.condition is not None else None
+        self.target_physical_mass = self.target_mass * scale if scale else self.target_mass
         self.target_height = t([s.height_m for s in specs])
         self.target_grasp_width = t([s.grasp_width_m for s in specs])
         self.target_radius = t([s.footprint_radius_m for s in specs])
@@ -211,6 +220,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def support_of(self, env: int, index: int) -> Support:
         return self.layouts[env].supports[index]
+
+    def condition_surfaces(self) -> torch.Tensor | None:
+        return getattr(self, "static_boxes", None)  # the layouts' floors, walls, ceiling and furniture
 
     def _load_lighting(self, options: dict):
         light_layouts(self.scene, self.layouts, shadow=self.enable_shadow)
@@ -352,7 +364,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         ]
         if self.target is not None:
             tensors += [raw_pose_of(self.target), linear_velocity_of(self.target), self.target_grasp_point,
-                        self.target_grasps_rim, self.target_mass, self._object_start_p, self._object_start_q,
+                        self.target_grasps_rim, self.target_physical_mass, self._object_start_p, self._object_start_q,
                         self._grasp_streak, self.starts_held, self._episode_step]
         return tensors, readout
 
@@ -500,7 +512,14 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def _get_obs_agent(self):
         # the agent's `get_proprioception`, computed with the step's shared signals
-        return {"state": self.current_step_context().signals.proprio}
+        proprio = self.current_step_context().signals.proprio
+        if self.condition is not None and self.condition.senses:
+            proprio = proprio_with_estimate(proprio, self.sensed_airframe_state())
+        return {"state": proprio}
+
+    def sensed_airframe_state(self) -> AirframeState:
+        """The airframe state a policy reads under a sensor condition: delayed and noisy (`conditions.sensors`)."""
+        return self.condition_runtime.sensed(self.current_step_context().state, self._elapsed_steps)
 
     def _get_obs_extra(self, info: dict):
         # as ManiSkill's PickCube: the tool centre point's pose in every mode (the proprio state's forward kinematics),
@@ -535,20 +554,22 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
                 confirmed = torch.where(mine, f.grasp_confirmed, confirmed)
             skill = torch.where(mine, SKILLS.index(evaluator.skill), skill)
         state = ctx.state
+        # the policy's own motion: under a sensor condition the sensed estimate (the goal vectors stay exact)
+        own = self.sensed_airframe_state() if self.condition is not None and self.condition.senses else state
         zeros = torch.zeros(n, 3, device=self.device)
         doorway, ahead = self.room_routes.next_doorway(state.position, goal_point)
         parts = [
-            torch.nn.functional.one_hot(skill, len(SKILLS)).float(),
+            (skill[:, None] == torch.arange(len(SKILLS), device=self.device)).float(),  # one_hot checks its range: a sync
             goal,
             heading_frame(goal, state.yaw),
             ctx.object_pose.p - ctx.tcp if ctx.object_pose is not None else zeros,
             heading_error[:, None],
             progress[:, None],
             confirmed.float()[:, None],
-            state.velocity,
-            state.angular_velocity_body,
-            -state.rotation[:, 2, :2],  # gravity (0, 0, -1) in the body frame: -R^T e_z, its x and y
-            (state.position[:, 2] - self.workspace_lo[:, 2])[:, None],
+            own.velocity,
+            own.angular_velocity_body,
+            -own.rotation[:, 2, :2],  # gravity (0, 0, -1) in the body frame: -R^T e_z, its x and y
+            (own.position[:, 2] - self.workspace_lo[:, 2])[:, None],
             (self.grasp_side_room if ctx.object_pose is not None else torch.zeros(n, device=self.device))[:, None],
             ahead.float()[:, None],
             torch.where(ahead[:, None], doorway - state.position, zeros),
