@@ -18,6 +18,7 @@ from .. import tiers
 from ..envs.tasks import SKILLS, get_setting
 from .pooling import pool_training_runs, training_runs_text
 from .results import load_results
+from .robustness import robustness_markdown
 from .row_facts import GroupKey, group_key, row_facts, short_labels, solver_text, tier_of_result, time_to_success_text
 
 __all__ = ["SettingTable", "glance_table", "render_latex", "render_markdown", "solver_text",
@@ -164,6 +165,7 @@ def render_markdown(table: SettingTable) -> str:
     for group in table.groups:
         lines += _group_markdown(table, group)
     lines += _chain_markdown(table)
+    lines += robustness_markdown(table.results, table.name)
     lines += ["", "### Rows", "", "| Row | Policy | Inputs | Training data | Budget | Training seeds | n per cell | "
               "Contact solver | Time to success (s) | Starts seen in training | Training runs (Mean S.R. each) |",
               "|" + "---|" * 11]

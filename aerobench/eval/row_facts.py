@@ -67,7 +67,7 @@ class GroupKey:
     skills: tuple[str, ...]
     seed: int | None
     solver: str
-    condition: str = ""  # "wind_gusty_3ms v1" (comma-separated when several); "" without one
+    condition: str = ""  # "wind_gusty_3ms v1", a real-time setting (comma-separated when several); "" without one
 
     def order(self) -> tuple:
         """A total order (a seed may be unknown)."""
@@ -86,14 +86,26 @@ class GroupKey:
                 f"{condition}")
 
 
+def perturbation(result: dict) -> str:
+    """What the run changed from the nominal evaluation: its conditions and real-time settings ("" when nothing)."""
+    provenance = result["provenance"]
+    parts = [f"{c['name']} v{c['version']}" for c in provenance.get("conditions") or ()]
+    parts += list(provenance.get("condition") or ()) if not parts else []
+    realtime = provenance.get("realtime")
+    if realtime:
+        latency = realtime.get("latency_ms")
+        latency = "measured latency" if latency == "measured" else f"{float(latency):g} ms"
+        parts.append(f"real time ({latency}, hold {realtime.get('hold')}, {realtime.get('schedule')})")
+    return ", ".join(parts)
+
+
 def group_key(result: dict) -> GroupKey:
     provenance = result["provenance"]
     rank = {s: i for i, s in enumerate(SKILLS)}
     skills = tuple(sorted({c["skill"] for c in result["cells"] if c["n"]}, key=lambda s: (rank.get(s, 99), s)))
     smoke = provenance.get("max_steps") is not None or max((c["n"] for c in result["cells"]), default=0) <= 1
     # eval records name, version and parameters; a summary of records keeps the run's names (run.json)
-    condition = ", ".join([f"{c['name']} v{c['version']}" for c in provenance.get("conditions") or ()]
-                          or list(provenance.get("condition") or ()))
+    condition = perturbation(result)
     return GroupKey(smoke, tuple(provenance.get("chain") or ()), skills, provenance.get("seed"), solver_text(result),
                     condition)
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 from pathlib import Path
 
 import torch
@@ -61,12 +62,15 @@ def is_close(gripper: torch.Tensor) -> torch.Tensor:
     return (gripper < 0).float()
 
 
-def env_action(actor_out: torch.Tensor, normalizer: Normalizer, gripper: str, close: torch.Tensor | None = None) -> torch.Tensor:
+def env_action(actor_out: torch.Tensor, normalizer: Normalizer, gripper: str, close: torch.Tensor | None = None,
+               close_threshold: float = 0.5) -> torch.Tensor:
     """The env action `(N, A)` in [-1, 1] from the actor's output: continuous dimensions unnormalized; a binary
-    gripper sent as -1 (close) or +1 (open), from `close` (0/1, e.g. sampled by PPO) or else the logit's sign."""
+    gripper sent as -1 (close) or +1 (open), from `close` (0/1, e.g. sampled by PPO) or else closed where the
+    predicted probability of "close" exceeds `close_threshold` (0.5: the logit's sign)."""
     action = normalizer.unaction(actor_out).clamp(-1.0, 1.0)
     if gripper == "binary":
-        close = (actor_out[:, -1] > 0).float() if close is None else close
+        logit_threshold = math.log(close_threshold / (1.0 - close_threshold))  # 0.0 at 0.5: the sign, exactly
+        close = (actor_out[:, -1] > logit_threshold).float() if close is None else close
         action = torch.cat([action[:, :-1], (1.0 - 2.0 * close)[:, None]], dim=-1)
     return action
 
@@ -372,6 +376,11 @@ class LearnedPolicy:
                                                             str(self.device))
         model = config["model"]
         self.gripper = model["gripper"]
+        # the release decision's threshold on P(close) (checkpoint config `model.close_threshold`; 0.5 by default)
+        self.close_threshold = float(model.get("close_threshold", 0.5))
+        if not 0.0 < self.close_threshold < 1.0:
+            raise ValueError(f"{path / CONFIG_FILE}: model.close_threshold must be between 0 and 1, "
+                             f"got {self.close_threshold}")
         self.observer = ActorObserver(model, self.device)
         self.path, self.state_dim = path, model["state_dim"]
         self.env = env
@@ -423,7 +432,8 @@ class LearnedPolicy:
 
     @torch.no_grad()
     def act(self, obs) -> torch.Tensor:
-        action = env_action(self.actor(self.observe(obs)), self.normalizer, self.gripper)
+        action = env_action(self.actor(self.observe(obs)), self.normalizer, self.gripper,
+                            close_threshold=self.close_threshold)
         return self.observer.to_env(action, obs)
 
 

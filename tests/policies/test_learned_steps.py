@@ -35,3 +35,15 @@ def test_a_learned_policy_acts_without_a_host_sync_between_resets(tier):
         with NoHostSync():
             policy.act(obs)
         env.close()
+
+
+def test_the_close_threshold_moves_the_release_decision_and_defaults_to_the_logits_sign():
+    from aerobench.policies.learned import Normalizer, env_action, identity_stats
+
+    normalizer = Normalizer(identity_stats(3, 5))
+    out = torch.zeros(3, 5)
+    out[:, -1] = torch.tensor([-1.0, 0.5, 2.5])  # P(close) = 0.27, 0.62, 0.92
+    assert env_action(out, normalizer, "binary")[:, -1].tolist() == [1.0, -1.0, -1.0]  # -1: close
+    assert env_action(out, normalizer, "binary", close_threshold=0.9)[:, -1].tolist() == [1.0, 1.0, -1.0]
+    assert torch.equal(env_action(out, normalizer, "binary", close_threshold=0.5),
+                       env_action(out, normalizer, "binary"))

@@ -1,0 +1,49 @@
+"""The leaderboard's robustness view: a perturbed run beside the nominal run of the same checkpoint on the same
+starts, with the paired change and its interval; a run without its nominal twin is listed as unpaired."""
+
+from pathlib import Path
+
+import pytest
+
+from aerobench.eval.leaderboard import SettingTable, load_all, render_markdown
+from aerobench.eval.results import summarize, write_results
+from aerobench.eval.robustness import robustness_rows
+from aerobench.eval.row_facts import group_key, perturbation
+
+WIND = [{"name": "wind_gusty_3ms", "version": 1, "parameters": {}, "source": "Dryden"}]
+
+
+def _results(tmp_path: Path, name: str, outcomes: list[str], checkpoint: str = "ckpt", **provenance) -> Path:
+    rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "skill": "pick",
+             "object": "sugar_box", "policy": "bc", "outcome": o, "mode": "Successful pick" if o == "S" else "x",
+             "cause": ""} for i, o in enumerate(outcomes)]
+    base = {"seed": 4200, "checkpoint": checkpoint, "skills": ["pick"], "objects": ["sugar_box"],
+            "episodes_per_object": len(outcomes), "max_steps": None}
+    return write_results(tmp_path / f"{name}.json", summarize(rows, {**base, **provenance}, label=name,
+                                                              inputs="privileged"))
+
+
+def test_a_perturbed_run_is_paired_with_its_nominal_twin_and_the_change_is_signed(tmp_path):
+    nominal = _results(tmp_path, "bc", ["S"] * 18 + ["F"] * 2)
+    windy = _results(tmp_path, "bc wind", ["S"] * 8 + ["F"] * 12, conditions=WIND)
+    late = _results(tmp_path, "bc late", ["S"] * 20, realtime={"latency_ms": 100.0, "hold": "last", "schedule": "sync"})
+    orphan = _results(tmp_path, "other wind", ["F"] * 20, checkpoint="other", conditions=WIND)
+    results = load_all([nominal, windy, late, orphan])["TidyHouse"]
+    rows = {r["result"]["label"]: r for r in robustness_rows(results)}
+    assert set(rows) == {"bc wind", "bc late", "other wind"}
+    wind = rows["bc wind"]["comparison"]["overall"]
+    assert (wind["n"], wind["rate_a"], wind["rate_b"], wind["only_a"], wind["only_b"]) == (20, 0.9, 0.4, 10, 0)
+    assert wind["p_value"] == pytest.approx(2 / 1024)  # all ten discordant pairs one way
+    assert rows["other wind"]["comparison"] is None
+    assert perturbation(rows["bc late"]["result"]) == "real time (100 ms, hold last, sync)"
+    assert group_key(rows["bc wind"]["result"]) != group_key(rows["bc wind"]["nominal"])  # never ranked together
+    text = render_markdown(SettingTable("TidyHouse", results))
+    assert "### Robustness: conditions and real-time evaluation" in text
+    line = next(line for line in text.splitlines() if "| wind_gusty_3ms v1 | 20 |" in line)
+    assert "| 90.0 | 40.0 | -50.0 [" in line
+    assert "unpaired: no nominal run" in text
+
+
+def test_a_leaderboard_without_perturbed_runs_has_no_robustness_view(tmp_path):
+    results = load_all([_results(tmp_path, "bc", ["S", "F", "S"])])["TidyHouse"]
+    assert "Robustness" not in render_markdown(SettingTable("TidyHouse", results))
