@@ -38,14 +38,10 @@ MODEL_FIELDS = ("wind", "ground", "ceiling", "wall", "motor_lag", "headroom", "s
 PHYSICAL_MODELS = ("wind", "ground", "ceiling", "wall", "motor_lag", "headroom")  # the conditioned physics step's
 
 
-@dataclass(frozen=True)
-class Condition:
-    """One named condition: its models (None: not changed) and what a reader needs to trust it."""
+@dataclass(frozen=True, kw_only=True)
+class Models:
+    """The models a condition (or a set of them) sets; None: not changed (`MODEL_FIELDS`)."""
 
-    name: str
-    version: int
-    description: str
-    source: str
     wind: WindModel | None = None
     ground: GroundEffect | None = None
     ceiling: CeilingEffect | None = None
@@ -55,6 +51,16 @@ class Condition:
     sensor_noise: SensorNoise | None = None
     sensor_delay: SensorDelay | None = None
     payload_mass_scale: float | None = None  # the carried object's real mass over its class's nominal mass
+
+
+@dataclass(frozen=True)
+class Condition(Models):
+    """One named condition: its models and what a reader needs to trust it."""
+
+    name: str
+    version: int
+    description: str
+    source: str
 
     def models(self) -> dict:
         """The models this condition sets, by field name."""
@@ -71,19 +77,10 @@ class Condition:
 
 
 @dataclass(frozen=True)
-class ConditionSet:
+class ConditionSet(Models):
     """Several conditions at once (their models merged); what an env runs under."""
 
     conditions: tuple[Condition, ...]
-    wind: WindModel | None = None
-    ground: GroundEffect | None = None
-    ceiling: CeilingEffect | None = None
-    wall: WallEffect | None = None
-    motor_lag: MotorLag | None = None
-    headroom: ThrustHeadroom | None = None
-    sensor_noise: SensorNoise | None = None
-    sensor_delay: SensorDelay | None = None
-    payload_mass_scale: float | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
