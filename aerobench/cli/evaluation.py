@@ -53,7 +53,8 @@ def add_condition_option(p) -> None:
     """`--condition NAME[,NAME]` (eval and generate): named evaluation conditions (`aerobench conditions`)."""
     p.add_argument("--condition", type=parse_csv, default=(), metavar="NAME[,NAME]",
                    help="run under named evaluation conditions (wind, surface effects, motor lag, sensor noise, "
-                        "payload mismatch; `aerobench conditions` lists them) on the same starts as without")
+                        "payload mismatch; for camera policies lighting, surface colours, camera noise and motion "
+                        "blur; `aerobench conditions` lists them) on the same starts as without")
 
 
 def add_conditions(sub) -> None:

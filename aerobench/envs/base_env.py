@@ -2,7 +2,8 @@
 
 It owns what all tasks share: the platform agent (`platform="gripper" | "arm"`), the controller variant
 (`controller="payload-aware" | "nominal"`), the spec's 240 Hz physics / 20 Hz control, the once-per-control-step
-hand-off of payload signals to the flight controller, and the evaluation condition (`condition=`, `conditions/`).
+hand-off of payload signals to the flight controller, and the evaluation condition (`condition=`, `conditions/`:
+the physical ones through the body controller, the camera noise and motion blur on the frames a policy reads here).
 Tasks fill the usual ManiSkill hooks.
 """
 
@@ -15,6 +16,7 @@ import numpy as np
 import sapien
 import torch
 from mani_skill.envs.sapien_env import BaseEnv
+from mani_skill.sensors.camera import Camera
 from mani_skill.utils.structs.types import SceneConfig, SimConfig
 
 from .agents import AGENT_UIDS, AerialAgent
@@ -83,6 +85,8 @@ class AerialEnv(BaseEnv):
     agent: AerialAgent
     # whether the env has a task observation and a carried object for the sensor and payload conditions to act on
     supports_task_conditions = False
+    # whether the env makes its lights and surfaces from layouts, for the lighting and surface colour conditions
+    supports_scene_conditions = False
     condition_runtime: ConditionRuntime | None = None
 
     def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware",
@@ -93,6 +97,9 @@ class AerialEnv(BaseEnv):
                 self.condition.senses or self.condition.payload_mass_scale is not None):
             raise ValueError(f"{type(self).__name__} has no policy observation or carried object for the sensor and "
                              f"payload conditions; use them with the skill envs")
+        if self.condition is not None and self.condition.changes_scene and not self.supports_scene_conditions:
+            raise ValueError(f"{type(self).__name__} does not build its scene from layouts for the lighting and "
+                             f"surface colour conditions; use them with the skill envs")
         self.platform = get_platform(platform)
         self.physx_solver = check_physx_solver(physx_solver) if physx_solver else default_physx_solver()
         self.rendering = check_rendering(rendering)
@@ -171,6 +178,30 @@ class AerialEnv(BaseEnv):
         signals = self.payload_signals()
         if signals is not None:
             self.agent.body_controller.update_payload(*signals)
+
+    def _get_obs_sensor_data(self, apply_texture_transforms: bool = True) -> dict:
+        # under camera noise or motion blur the frames a policy reads (ManiSkill's uint8 RGB and int16 depth); the raw
+        # float textures (apply_texture_transforms=False) and every other image pass through
+        data = super()._get_obs_sensor_data(apply_texture_transforms)
+        if self.condition is None or not self.condition.changes_frames or not apply_texture_transforms:
+            return data
+        motion = self.camera_motion() if self.condition.motion_blur is not None else None
+        return self._condition_runtime().camera_frames(data, self._elapsed_steps, motion)
+
+    def camera_motion(self) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+        """Per mounted camera: its angular velocity `(N, 3)` in its own OpenCV frame (x right, y down, z forward; the
+        mount link's world angular velocity turned by the camera's world-to-camera rotation) and its intrinsics
+        `(N, 3, 3)`, at the last render. A camera on no link does not turn."""
+        out, link_omega = {}, {}
+        for uid, sensor in self.scene.sensors.items():
+            if not isinstance(sensor, Camera) or sensor.entity is None:
+                continue
+            key = id(sensor.entity)
+            if key not in link_omega:  # the onboard cameras share the airframe: one read
+                link_omega[key] = sensor.entity.angular_velocity
+            world_to_camera = sensor.camera.get_extrinsic_matrix()[:, :3, :3].to(link_omega[key].device)
+            out[uid] = ((world_to_camera @ link_omega[key][..., None])[..., 0], sensor.camera.get_intrinsic_matrix())
+        return out
 
     def _flatten_raw_obs(self, obs):
         # The "state" observation is a dict of dicts of `(N, ...)` tensors: one hstack of its leaves is what

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import torch
 
-from .kernels import Kernel, shared_kernel
+from ..accel import Kernel, shared_kernel
 
 
 class FailureCause(IntEnum):

@@ -22,13 +22,13 @@ from mani_skill.utils import sapien_utils
 from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs import Actor, Pose
 
+from ..accel import Kernel
 from .agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
 from .base_env import AerialEnv
 from .control.arm import arm_weight_feedforward_body
 from .control.flight import FlightMemory, flight_step
 from .control.so3 import matrix_to_quat_wxyz, quat_wxyz_to_matrix
 from .control.virtual_joints import AirframeState
-from .kernels import Kernel
 from .objects import build_object, get_object
 from .poses import raw_pose_of
 from .scenes.room import RoomLayout, build_room

@@ -18,11 +18,11 @@ from typing import NamedTuple
 
 import torch
 
+from ..accel import Kernel, shared_kernel
 from .checks import SafetyLimits, consecutive, flight_envelope_flags, is_pinched, nontarget_contact_force, support_force
 from .control.so3 import quat_rotate, quat_wxyz_to_matrix, tilt_angle
 from .control.virtual_joints import AirframeState, airframe_state_from_joints, joint_columns
 from .geometry import body_points_to_world, min_distance_to_boxes
-from .kernels import Kernel, shared_kernel
 from .observations import GRASP_CONFIRM_STEPS, proprio_state
 
 GRASP_FORCE_N = 0.5  # a grasp: both fingers pressed by the object with at least this force

@@ -28,8 +28,8 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from ..accel import Kernel, shared_kernel
 from ..envs.control.arm import arm_point_positions_body, normalized_arm_action
-from ..envs.kernels import Kernel, shared_kernel
 from ..envs.observations import heading_frame
 from ..envs.platforms import MAX_SPEED_MPS
 from ..envs.scenes.articulated import SUPPORT_EDGE_MARGIN_M

@@ -19,8 +19,8 @@ from typing import NamedTuple
 
 import torch
 
+from ..accel import Kernel, shared_kernel
 from ..envs.control.arm import normalized_arm_action
-from ..envs.kernels import Kernel, shared_kernel
 from .base import SkillExpert, expert_action, goto_phase, tracking_velocity
 from .motion import POSITION_GAIN, TURN_TOLERANCE_RAD, wrap_angle, yaw_rate_towards
 from .planner import planner_for

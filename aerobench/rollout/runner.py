@@ -102,7 +102,10 @@ class RolloutSpec:
         object.__setattr__(self, "rendering", check_rendering(self.rendering))
         object.__setattr__(self, "action_noise", check_action_noise(self.action_noise))
         object.__setattr__(self, "condition", parse_condition_names(self.condition))
-        resolve_condition(self.condition)  # they compose: two that set the same model are one line now, not later
+        conditions = resolve_condition(self.condition)  # they compose: two that set the same model are refused now
+        if conditions is not None and conditions.is_visual and not (self.record_cameras or self.blind):
+            raise ValueError(f"{', '.join(conditions.names)} change what the cameras see, and this run renders no "
+                             f"camera (its policy reads none, or --no-cameras): it would measure nothing")
         if self.rendering != DEFAULT_RENDERING and not self.record_cameras:
             raise ValueError(f"{self.rendering} rendering is for the cameras; drop --no-cameras or the --render option")
         i, k = self.shard

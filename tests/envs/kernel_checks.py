@@ -4,7 +4,7 @@ from collections.abc import Callable, Sequence
 
 import torch
 
-from aerobench.envs.kernels import Kernel
+from aerobench.accel.kernels import Kernel
 
 
 def assert_compiled_is_eager(fn: Callable, name: str, key: object, tensors: Sequence[torch.Tensor],

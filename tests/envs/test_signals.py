@@ -6,8 +6,8 @@ import pytest
 import torch
 
 import aerobench.envs  # noqa: F401
+from aerobench.accel.kernels import Kernel
 from aerobench.envs.geometry import body_points_to_world, min_distance_to_boxes
-from aerobench.envs.kernels import Kernel
 from aerobench.envs.observations import GRASP_CONFIRM_STEPS
 from aerobench.envs.signals import BOXES_INPUT, FlightSignals, SharedSignals, signals_kernel
 from aerobench.policies import make_policy

@@ -92,3 +92,56 @@ STATE_DELAY_STEPS = 2  # 100 ms at 20 Hz: an estimate from a camera pipeline's l
 # --------------------------------------------------------------------------------------------------------------------
 HEAVY_PAYLOAD_SCALE = 1.5
 LIGHT_PAYLOAD_SCALE = 0.5
+
+# --------------------------------------------------------------------------------------------------------------------
+# What the cameras see (visual conditions, `visual.py`)
+# --------------------------------------------------------------------------------------------------------------------
+# Lighting. The renderer has no auto-exposure, so a scaled light is a darker or brighter image. The scales are
+# aerobench's choice: x0.3 is a room lit for the evening rather than for work (EN 12464-1 asks 500 lx for reading and
+# writing; a living room at night has a few hundred lux or less), x2 clips the bright surfaces.
+DIM_LIGHT_SCALE = 0.3
+BRIGHT_LIGHT_SCALE = 2.0
+# A warm-white lamp (2700-3000 K, incandescent and "warm white" LEDs) seen by a camera white-balanced for daylight:
+# the light's colour is the Planckian radiator's at WARM_LIGHT_K over that at DAYLIGHT_K, in linear sRGB, at equal
+# luminance (`visual.colour_temperature_tint`).
+WARM_LIGHT_K = 3000.0
+DAYLIGHT_K = 6500.0  # about CIE D65, sRGB's white point
+# The Planckian locus in CIE 1931 xy as cubic splines in 1/T and x, Kim et al., "Design of advanced color temperature
+# control system for HDTV applications", J. Korean Phys. Soc. 41(6), 2002 (valid 1667-25000 K): x(T) for T up to
+# PLANCK_X_SPLIT_K and above it; y(x) for T up to 2222 K, up to 4000 K and above (coefficients of x^3, x^2, x, 1;
+# x's of 1e9/T^3, 1e6/T^2, 1e3/T, 1).
+PLANCK_X_SPLIT_K = 4000.0
+PLANCK_X_LOW = (-0.2661239, -0.2343589, 0.8776956, 0.179910)
+PLANCK_X_HIGH = (-3.0258469, 2.1070379, 0.2226347, 0.240390)
+PLANCK_Y_SPLITS_K = (2222.0, 4000.0)
+PLANCK_Y = ((-1.1063814, -1.34811020, 2.18555832, -0.20219683),
+            (-0.9549476, -1.37418593, 2.09137015, -0.16748867),
+            (3.0817580, -5.87338670, 3.75112997, -0.37001483))
+# CIE XYZ to linear sRGB (IEC 61966-2-1:1999) and the luminance of linear sRGB (its Y row of the inverse, Rec. 709)
+XYZ_TO_LINEAR_SRGB = ((3.2406, -1.5372, -0.4986), (-0.9689, 1.8758, 0.0415), (0.0557, -0.2040, 1.0570))
+SRGB_LUMINANCE = (0.2126, 0.7152, 0.0722)
+# The sun low over the horizon at the layout's own azimuth (nominal layouts draw 35-70 deg): light from the side, as
+# through a window late in the day. aerobench's choice.
+LOW_SUN_ELEVATION_DEG = 10.0
+# Surface colours: each colour of the layout's static boxes times per-channel gains drawn uniformly in [1 - a, 1 + a]
+# (a grey wall turns pink or green, a brown floor blue-ish); bounded colour randomisation in the manner of Tobin et
+# al., "Domain randomization for transferring deep neural networks from simulation to the real world", IROS 2017.
+# a = 0.5 is aerobench's choice.
+SURFACE_GAIN_CHANGE = 0.5
+# Camera noise. RGB: white Gaussian noise of RGB_NOISE_SIGMA levels (of 255) per pixel and channel: aerobench's choice,
+# of the size of a small CMOS camera's temporal noise at mid-grey under indoor light (the Poissonian-Gaussian model of
+# Foi et al., IEEE TIP 17(10), 2008, at one signal level); not one camera's measured figure.
+RGB_NOISE_SIGMA = 4.0
+# Depth: an Intel RealSense D435's stereo depth noise, RMS = z^2 s / (f B) (Grunnet-Jepsen, Sweetser & Woodfill,
+# "Tuning depth cameras for best performance", Intel white paper, rev. 2.0: subpixel RMS s ~ 0.08 for a textured
+# scene, f = 1/2 X_res / tan(HFOV / 2) at the D435's best resolution 848 x 480; baseline 50 mm and depth HFOV 87 deg
+# from the D400 series datasheet): 3.6 mm at 1 m, 14 mm at 2 m, 32 mm at 3 m.
+D435_SUBPIXEL_RMS = 0.08
+D435_BASELINE_M = 0.050
+D435_DEPTH_WIDTH_PX = 848
+D435_DEPTH_HFOV_DEG = 87.0
+# Motion blur: each frame integrates the scene over an exposure that ends at the frame; half the 50 ms control period
+# (the "180-degree shutter" of film cameras: exposure = 1 / (2 x frame rate)), within the 10-33 ms a small camera's
+# auto-exposure takes indoors. aerobench's choice.
+MOTION_BLUR_EXPOSURE_S = 0.025
+MOTION_BLUR_TAPS = 9  # samples along each pixel's path over the exposure (bilinear between pixels)

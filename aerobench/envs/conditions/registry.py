@@ -1,7 +1,8 @@
 """The named evaluation conditions as data: name -> version, models and their parameters, source, description.
 
 A condition is a set of models (`MODEL_FIELDS`: wind, ground / ceiling / wall effects, motor lag, thrust headroom,
-sensor noise and delay, payload mass scale);
+sensor noise and delay, payload mass scale; and what the cameras see: lighting, surface colours, camera noise, motion
+blur);
 several names compose when no two set the same model (`resolve_condition`). A condition's `version` is raised
 whenever its parameters or its models' equations change, and results record name, version and parameters, so a
 row says exactly what it was measured under. No condition (the empty tuple) is today's physics, bit for bit.
@@ -16,26 +17,45 @@ from types import MappingProxyType
 from .constants import (
     ANGULAR_VELOCITY_NOISE_RPS,
     ATTITUDE_NOISE_RAD,
+    BRIGHT_LIGHT_SCALE,
+    DAYLIGHT_K,
+    DIM_LIGHT_SCALE,
     DRYDEN_LIGHT_W20_MPS,
     HEAVY_PAYLOAD_SCALE,
     LIGHT_PAYLOAD_SCALE,
     LIPO_FULL_CELL_V,
     LIPO_NOMINAL_CELL_V,
+    LOW_SUN_ELEVATION_DEG,
+    MOTION_BLUR_EXPOSURE_S,
+    MOTION_BLUR_TAPS,
     POSITION_NOISE_M,
     PX4_MOTOR_TIME_CONSTANT_DOWN_S,
     PX4_MOTOR_TIME_CONSTANT_UP_S,
+    RGB_NOISE_SIGMA,
     SLOW_MOTOR_TIME_CONSTANT_S,
     STATE_DELAY_STEPS,
+    SURFACE_GAIN_CHANGE,
     VELOCITY_NOISE_MPS,
+    WARM_LIGHT_K,
 )
 from .motors import MotorLag, ThrustHeadroom
 from .proximity import CeilingEffect, GroundEffect, WallEffect
 from .sensors import SensorDelay, SensorNoise
+from .visual import (
+    CameraNoise,
+    Lighting,
+    MotionBlur,
+    SurfaceColours,
+    colour_temperature_tint,
+    stereo_depth_rms_per_m,
+)
 from .wind import WindModel
 
 MODEL_FIELDS = ("wind", "ground", "ceiling", "wall", "motor_lag", "headroom", "sensor_noise", "sensor_delay",
-                "payload_mass_scale")
+                "payload_mass_scale", "lighting", "surface_colours", "camera_noise", "motion_blur")
 PHYSICAL_MODELS = ("wind", "ground", "ceiling", "wall", "motor_lag", "headroom")  # the conditioned physics step's
+SCENE_MODELS = ("lighting", "surface_colours")  # applied when the scene is built
+FRAME_MODELS = ("camera_noise", "motion_blur")  # applied to each camera frame the policy reads
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -51,6 +71,10 @@ class Models:
     sensor_noise: SensorNoise | None = None
     sensor_delay: SensorDelay | None = None
     payload_mass_scale: float | None = None  # the carried object's real mass over its class's nominal mass
+    lighting: Lighting | None = None
+    surface_colours: SurfaceColours | None = None
+    camera_noise: CameraNoise | None = None
+    motion_blur: MotionBlur | None = None
 
 
 @dataclass(frozen=True)
@@ -96,6 +120,22 @@ class ConditionSet(Models):
         """Whether the physics step changes (wind, surfaces, motors)."""
         return any(getattr(self, name) is not None for name in PHYSICAL_MODELS)
 
+    @property
+    def is_visual(self) -> bool:
+        """Whether what the cameras see changes (lighting, surface colours, camera noise, motion blur); the physics
+        does not."""
+        return self.changes_scene or self.changes_frames
+
+    @property
+    def changes_scene(self) -> bool:
+        """Whether the built scene's lights or surfaces change."""
+        return any(getattr(self, name) is not None for name in SCENE_MODELS)
+
+    @property
+    def changes_frames(self) -> bool:
+        """Whether each camera frame the policy reads changes (noise, blur)."""
+        return any(getattr(self, name) is not None for name in FRAME_MODELS)
+
     def records(self) -> list[dict]:
         return [c.record() for c in self.conditions]
 
@@ -139,6 +179,34 @@ def _conditions() -> dict[str, Condition]:
         Condition("payload_light", 1, f"the carried object weighs x{LIGHT_PAYLOAD_SCALE:g} its class's nominal mass; "
                   "the controller feeds the nominal forward", "spec appendix 'Payload-Aware Flight Control' "
                   "(nominal mass feedforward); mismatch aerobench's", payload_mass_scale=LIGHT_PAYLOAD_SCALE),
+    ]
+    lights = "SAPIEN's lights scaled and tinted where the scene makes them"
+    warm = colour_temperature_tint(WARM_LIGHT_K, DAYLIGHT_K)
+    items += [
+        Condition("lighting_dim", 1, f"every light of the scene x{DIM_LIGHT_SCALE:g} (no auto-exposure: a darker "
+                  "image)", f"{lights}; the scale aerobench's choice", lighting=Lighting(DIM_LIGHT_SCALE)),
+        Condition("lighting_bright", 1, f"every light of the scene x{BRIGHT_LIGHT_SCALE:g} (bright surfaces clip)",
+                  f"{lights}; the scale aerobench's choice", lighting=Lighting(BRIGHT_LIGHT_SCALE)),
+        Condition("lighting_warm", 1, f"every light {WARM_LIGHT_K:g} K (warm-white lamps) seen by a camera balanced "
+                  f"for {DAYLIGHT_K:g} K daylight, at equal luminance", "black-body colours from the Planckian locus "
+                  "of Kim et al., J. Korean Phys. Soc. 2002, in linear sRGB (IEC 61966-2-1)",
+                  lighting=Lighting(tint=warm)),
+        Condition("lighting_side", 1, f"the sun {LOW_SUN_ELEVATION_DEG:g} deg over the horizon at the layout's "
+                  "azimuth (nominal 35-70 deg): light from the side", f"{lights}; the elevation aerobench's choice",
+                  lighting=Lighting(sun_elevation_deg=LOW_SUN_ELEVATION_DEG)),
+        Condition("surface_colours", 1, f"each colour of the walls, floor, ceiling and furniture times per-channel "
+                  f"gains in [{1 - SURFACE_GAIN_CHANGE:g}, {1 + SURFACE_GAIN_CHANGE:g}] drawn per layout (objects, "
+                  "goal marker, fixtures and drone unchanged)", "bounded colour randomisation after Tobin et al., "
+                  "IROS 2017; the range aerobench's choice", surface_colours=SurfaceColours(SURFACE_GAIN_CHANGE)),
+        Condition("camera_noise", 1, f"white noise on every camera frame: RGB {RGB_NOISE_SIGMA:g} levels of 255, "
+                  "depth RMS growing with depth squared as a RealSense D435's (3.6 mm at 1 m, 14 mm at 2 m)",
+                  "depth: Intel's D400 tuning white paper (RMS = z^2 subpixel / (focal x baseline)) and D435 "
+                  "datasheet; RGB sigma aerobench's choice", camera_noise=CameraNoise(RGB_NOISE_SIGMA,
+                                                                                      stereo_depth_rms_per_m())),
+        Condition("motion_blur", 1, f"every RGB frame integrated over a {MOTION_BLUR_EXPOSURE_S * 1000:g} ms "
+                  "exposure along the camera's rotation", "rotational image flow of Longuet-Higgins & Prazdny, "
+                  "Proc. R. Soc. B 1980, box exposure; exposure (a 180-degree shutter at 20 Hz) aerobench's choice",
+                  motion_blur=MotionBlur(MOTION_BLUR_EXPOSURE_S, MOTION_BLUR_TAPS)),
     ]
     return {c.name: c for c in items}
 
@@ -188,11 +256,16 @@ def resolve_condition(condition: str | Iterable[str] | Iterable[Condition] | Con
 
 def describe_conditions() -> list[str]:
     """One line per named condition: name, version, parameters, source (what `aerobench conditions` prints)."""
+    def number(v) -> str:
+        if isinstance(v, (tuple, list)):
+            return "(" + ", ".join(number(x) for x in v) + ")"
+        return f"{v:g}" if isinstance(v, float) else str(v)
+
     lines = []
     for c in CONDITIONS.values():
-        params = "; ".join(f"{model}: " + (", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
-                                                      for k, v in value.items()) if isinstance(value, dict) else
-                                           f"{value:g}") for model, value in c.parameters().items())
+        params = "; ".join(f"{model}: " + (", ".join(f"{k}={number(v)}" for k, v in value.items())
+                                           if isinstance(value, dict) else number(value))
+                           for model, value in c.parameters().items())
         lines.append(f"{c.name}  v{c.version}  {c.description}  [{params}]  source: {c.source}")
     return lines
 

@@ -1,12 +1,14 @@
 """An env's conditions while it runs: their own per-env random streams, each episode's draws, and the state they keep.
 
-Randomness: env i owns one torch CPU generator per model that draws (wind, sensor), seeded from its episode seed and
-the model's stream id (`condition_seed`), never from the reset's generators (`episode_rng`), so every condition
-starts from the same starts as the nominal run, and a model draws the same whatever other conditions run beside it.
+Randomness: env i owns one torch CPU generator per model that draws (wind, sensor, camera), seeded from its episode
+seed and the model's stream id (`condition_seed`), never from the reset's generators (`episode_rng`), so every
+condition starts from the same starts as the nominal run, and a model draws the same whatever other conditions run
+beside it.
 All of an episode's draws are made when it starts (`start_episodes`, for the envs being reset, one call per env as
 `episode_rng` does), so a batch of N envs draws exactly what N single envs draw, and the step never draws: the wind's
 heading and initial turbulence, then `WIND_NOISE_HORIZON_STEPS` control steps of white noise per model (an episode
-longer than that repeats its noise).
+longer than that repeats its noise). The camera noise draws one key per episode; each frame's noise is a hash of it
+(`visual.hashed_normals`). The surface colours draw once per build from their own stream (`stream_generator`).
 """
 
 from __future__ import annotations
@@ -23,15 +25,22 @@ from .constants import WIND_NOISE_HORIZON_STEPS
 from .physics import ConditionedPhysics
 from .registry import ConditionSet
 from .sensors import NOISE_WIDTH, STATE_WIDTH, DelayLine, add_noise, airframe_state, flat_state
+from .visual import camera_counter, hashed_normals, motion_blur, noisy_depth, noisy_rgb, rotational_flow
 from .wind import gauss_markov_step, onset, wind_world
 
-WIND_STREAM, SENSOR_STREAM = 1, 2  # the models' stream ids, mixed with the episode seed
+WIND_STREAM, SENSOR_STREAM, CAMERA_STREAM, SURFACE_STREAM = 1, 2, 3, 4  # the models' stream ids, mixed with the seed
+CAMERA_KEY_RANGE = 2**32  # an episode's camera noise key: a 32-bit hash input
 
 
 def condition_seed(episode_seed: int, stream: int) -> int:
     """A 63-bit seed for a model's stream of one episode (numpy's SeedSequence mixes the two: neighbouring episode
     seeds give unrelated streams, and none equals the reset's own `torch.manual_seed(episode_seed)` stream)."""
     return int(np.random.SeedSequence([int(episode_seed), stream]).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+def stream_generator(episode_seed: int, stream: int) -> torch.Generator:
+    """A CPU generator of a model's stream of one episode (for draws made outside the runtime: the build's)."""
+    return torch.Generator().manual_seed(condition_seed(episode_seed, stream))
 
 
 class ConditionRuntime:
@@ -56,6 +65,9 @@ class ConditionRuntime:
         if condition.sensor_noise is not None:
             self.generators[SENSOR_STREAM] = [torch.Generator() for _ in range(num_envs)]
             self.sensor_noise = torch.zeros(num_envs, horizon, NOISE_WIDTH, device=device)
+        if condition.camera_noise is not None:
+            self.generators[CAMERA_STREAM] = [torch.Generator() for _ in range(num_envs)]
+            self.camera_keys = torch.zeros(num_envs, dtype=torch.long, device=device)
         delay = condition.sensor_delay
         self.delay = DelayLine(num_envs, STATE_WIDTH, delay.steps if delay is not None else 0, device)
         self._envs = torch.arange(num_envs, device=device)
@@ -84,6 +96,10 @@ class ConditionRuntime:
         if SENSOR_STREAM in self.generators:
             self.sensor_noise[index] = torch.stack(
                 [torch.randn(self.horizon, NOISE_WIDTH, generator=self.generators[SENSOR_STREAM][i]) for i in rows]
+            ).to(self.device)
+        if CAMERA_STREAM in self.generators:
+            self.camera_keys[index] = torch.stack(
+                [torch.randint(CAMERA_KEY_RANGE, (), generator=self.generators[CAMERA_STREAM][i]) for i in rows]
             ).to(self.device)
         if self.physics is not None:
             mask = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
@@ -132,3 +148,35 @@ class ConditionRuntime:
         if noise is None:
             return delayed
         return add_noise(delayed, self.sensor_noise[self._envs, step % self.horizon], noise)
+
+    def camera_frames(self, sensor_data: dict, step: torch.Tensor,
+                      motion: dict[str, tuple[torch.Tensor, torch.Tensor]] | None = None) -> dict:
+        """The cameras' frames as the policy reads them (`sensor_data`: ManiSkill's `{camera: {"rgb": uint8 (N, H, W,
+        3), "depth": int16 mm (N, H, W, 1), ...}}` at the envs' control `step` `(N,)`): each RGB frame blurred along
+        its camera's rotation (`motion[camera]`: angular velocity `(N, 3)` in the camera's OpenCV frame and intrinsics
+        `(N, 3, 3)`; a camera missing there is not blurred), then RGB and depth noisy. Other images pass through."""
+        blur, noise = self.condition.motion_blur, self.condition.camera_noise
+        out = {}
+        for uid, images in sensor_data.items():
+            images = dict(images)
+            rgb, depth = images.get("rgb"), images.get("depth")
+            if rgb is None and depth is None:
+                out[uid] = images
+                continue
+            device = (rgb if rgb is not None else depth).device  # the render device (may differ from the sim's)
+            if blur is not None and rgb is not None and motion is not None and uid in motion:
+                omega, intrinsic = (t.to(device) for t in motion[uid])
+                flow = rotational_flow(omega, intrinsic, rgb.shape[1], rgb.shape[2])
+                images["rgb"] = rgb = motion_blur(rgb, flow, blur)
+            if noise is not None:
+                shape = (rgb if rgb is not None else depth).shape
+                pixels = shape[1] * shape[2]
+                # elements: RGB's 3 per pixel, then depth's one (a prefix of the draw: RGB alone reads the same)
+                white = hashed_normals(self.camera_keys.to(device), step.to(device), camera_counter(uid),
+                                       4 * pixels if depth is not None else 3 * pixels)
+                if rgb is not None:
+                    images["rgb"] = noisy_rgb(rgb, white[:, :3 * pixels].reshape(rgb.shape), noise)
+                if depth is not None:
+                    images["depth"] = noisy_depth(depth, white[:, 3 * pixels:].reshape(depth.shape), noise)
+            out[uid] = images
+        return out

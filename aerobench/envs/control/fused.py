@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import torch
 
-from ..kernels import Kernel, all_contiguous, compile_requested
+from ...accel import Kernel, all_contiguous, compile_requested
 from ..platforms import PlatformSpec
 from .arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
 from .flight import FlightMemory, FlightOutput, FlightParams, flight_laws

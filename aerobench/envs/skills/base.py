@@ -11,7 +11,8 @@ PackageDelivery | LongHorizonRearrangement), `object` (one of the setting's obje
 `platform` (gripper | arm; default per skill), `controller` (payload-aware | nominal), `num_distractors`,
 `real_assets` ("ycb": YCB meshes for the objects), `assets_dir` (see `assets.py`) and `condition` (evaluation
 conditions, `conditions/`: every kind applies here, the sensor ones to the proprioceptive and task state, the payload
-ones to the target object's built mass). `reset(options=...)` takes
+ones to the target object's built mass, the lighting and surface colours to the lights and boxes built from the
+layouts, the camera noise and blur to the frames). `reset(options=...)` takes
 `"object"` or `"objects"` (one per env) with `"reconfigure": True` to choose the objects of the next layout.
 On one CPU env the layout is regenerated every episode; with parallel envs (GPU) each env keeps its layout until
 `reset(options={"reconfigure": True})` (ManiSkill's `reconfiguration_freq` overrides either default).
@@ -29,16 +30,17 @@ from mani_skill.sensors.camera import CameraConfig
 from mani_skill.utils import sapien_utils
 from mani_skill.utils.structs import Actor, Pose
 
+from ...accel import Kernel
 from ..agents.airframe import FINGER_JOINT_NAMES, VIRTUAL_LINK_NAMES
 from ..assets import YCB_IDS, parse_real_assets, replicacad_dir, ycb_model_dir
 from ..base_env import AerialEnv
 from ..checks import FailureCause, SafetyLimits, verdict_kernel
+from ..conditions.runtime import SURFACE_STREAM, stream_generator
 from ..conditions.sensors import proprio_with_estimate
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
 from ..control.virtual_joints import AirframeState
 from ..geometry import drone_proxy_points_body, min_distance_to_boxes, pack_boxes, point_box_distance
-from ..kernels import Kernel
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
 from ..poses import linear_velocity_of, raw_pose_of, raw_quats_of
@@ -92,6 +94,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
     uses_object = True
     safety = SafetyLimits()
     supports_task_conditions = True
+    supports_scene_conditions = True
 
     def __init__(
         self,
@@ -134,6 +137,10 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         seeds = [int(s) for s in np.atleast_1d(self._episode_seed)]
         rngs = [np.random.default_rng(s) for s in seeds]
         self.layouts: list[SceneLayout] = [generate_layout(self.setting.scene, rng) for rng in rngs]
+        surfaces = self.condition.surface_colours if self.condition is not None else None
+        if surfaces is not None:  # from their own stream: the layouts and the starts stay the nominal ones
+            self.layouts = [surfaces.recolour(layout, stream_generator(seed, SURFACE_STREAM))
+                            for layout, seed in zip(self.layouts, seeds)]
         self.built: BuiltScene = build_layouts(self.scene, self.layouts)
         self.static_boxes = pack_boxes([layout.boxes for layout in self.layouts], self.device)
         self.workspace_lo = torch.tensor([layout.workspace_lo for layout in self.layouts], device=self.device)
@@ -225,8 +232,11 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
         return getattr(self, "static_boxes", None)  # the layouts' floors, walls, ceiling and furniture
 
     def _load_lighting(self, options: dict):
-        light_layouts(self.scene, self.layouts, shadow=self.enable_shadow)
-        self.scene.add_directional_light([0, 0, -1], [0.4, 0.4, 0.4])
+        lighting = self.condition.lighting if self.condition is not None else None  # made here, for the build
+        layouts = self.layouts if lighting is None else [lighting.relight(layout) for layout in self.layouts]
+        light_layouts(self.scene, layouts, shadow=self.enable_shadow)
+        fill = [0.4, 0.4, 0.4]
+        self.scene.add_directional_light([0, 0, -1], fill if lighting is None else lighting.light_colour(fill))
 
     @property
     def _default_human_render_camera_configs(self):

@@ -11,11 +11,11 @@ import torch
 from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs.pose import Pose
 
+from ...accel import Kernel, shared_kernel
 from ..checks import FailureCause, SafetyLimits, consecutive
 from ..control.arm import arm_point_positions_body
 from ..control.so3 import quat_wxyz_to_matrix
 from ..geometry import level_airframe_room
-from ..kernels import Kernel, shared_kernel
 from ..observations import wrap_to_period
 from ..scenes import articulated
 from ..tasks import instruction

@@ -11,10 +11,10 @@ import torch
 from mani_skill.utils.registration import register_env
 from mani_skill.utils.structs import Pose
 
+from ...accel import Kernel, shared_kernel
 from ..checks import FailureCause, SafetyLimits, consecutive
 from ..control.arm import arm_point_positions_body
 from ..geometry import level_airframe_room
-from ..kernels import Kernel, shared_kernel
 from ..observations import wrap_angle
 from ..platforms import CONTROL_HZ
 from ..tasks import instruction

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 import aerobench.envs  # noqa: F401
-from aerobench.envs import kernels
+from aerobench.accel import kernels
 from aerobench.envs.control.arm import ArmParams, arm_servo_torques, arm_weight_feedforward_body
 from aerobench.envs.control.flight import FlightMemory, FlightParams, flight_step
 from aerobench.envs.control.fused import FusedPhysicsStep, physics_step

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from aerobench.envs.kernels import Kernel, hands_out_again, shared_kernel, trusted_vector_isa
+from aerobench.accel.kernels import Kernel, hands_out_again, shared_kernel, trusted_vector_isa
 
 
 def _plus_one(x: torch.Tensor) -> tuple[torch.Tensor]:
@@ -98,7 +98,7 @@ def test_builds_take_turns_and_a_build_that_waited_loads_the_package_another_bui
 
     from torch._inductor.runtime.cache_dir_utils import cache_dir as inductor_cache_dir
 
-    from aerobench.envs import kernels
+    from aerobench.accel import kernels
 
     lock_file = Path(inductor_cache_dir()) / kernels.BUILD_LOCK
     real_build = torch._inductor.aoti_compile_and_package
@@ -190,7 +190,7 @@ def test_the_answered_isa_is_the_one_inductors_probes_pick():
     script = """
 import json, sys, torch
 from torch._inductor import config, cpu_vec_isa
-from aerobench.envs.kernels import trusted_vector_isa
+from aerobench.accel.kernels import trusted_vector_isa
 answered = sys.argv[1] == "answered"
 with config.patch({"cpp.vec_isa_ok": True}), (trusted_vector_isa() if answered else config.patch({})):
     isas = [isa for isa in cpu_vec_isa.valid_vec_isa_list() if not (answered is False and "amx" in str(isa))]

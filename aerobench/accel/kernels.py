@@ -59,7 +59,7 @@ INDUCTOR_OPTIONS = {**CPU_CODEGEN, "cpp_wrapper": True}
 #   same output buffers at every call, so they are copied (`_owned`; `hands_out_again` finds such a package). For the
 #   240 Hz flight step, three outputs and many intermediates, this is 2x cheaper (6 against 13.5 us).
 # The minimal array-ref interface, which goes with stack allocation in inductor's examples, kept every call's inputs
-# alive through the Python runner (30 MB per 100k calls); tests/envs/control/test_fused.py and tests/envs/test_kernels.py
+# alive through the Python runner (30 MB per 100k calls); tests/envs/control/test_fused.py and tests/accel/test_kernels.py
 # check that a call leaves nothing behind and that outputs do not alias.
 AOT_INDUCTOR_OPTIONS = {
     **CPU_CODEGEN,

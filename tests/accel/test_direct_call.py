@@ -4,7 +4,7 @@ the forwarding function's constants exactly as the package's memory holds them."
 import pytest
 import torch
 
-from aerobench.envs.direct_call import (
+from aerobench.accel.direct_call import (
     Source,
     UnsupportedPackage,
     _literal,
