@@ -43,6 +43,9 @@ def add_eval(sub) -> None:
                    help="a blind control: the policy gets blank cameras (for a LeRobot policy trained with blanked "
                         "images; docs/training.md); nothing is rendered")
     add_condition_option(p)
+    p.add_argument("--controller", default="payload-aware", choices=("payload-aware", "nominal"),
+                   help="the flight controller: payload-aware (the spec's; estimates a carried mass) or nominal (feeds "
+                        "the airframe's mass forward; the control arm for the payload conditions)")
     p.add_argument("--out", required=True, help="folder for records.jsonl, results.json and videos/")
     add_ray_options(p)
     add_realtime_options(p)
@@ -129,7 +132,7 @@ def _run_eval(args) -> int:
             seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
             dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
             ray=args.ray, inputs=args.inputs, blind=args.blind, realtime=realtime, policy_server=server,
-            condition=args.condition,
+            condition=args.condition, controller=args.controller,
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..envs.conditions import resolve_condition
+from ..envs.control.payload import ControllerMode
 from ..envs.tasks import TaskSetting, get_setting
 from ..policies.remote import PolicyServerSpec
 from ..rollout.chained import checkpoint_for, resolve_chain, split_checkpoints, stage_skills
@@ -57,8 +58,10 @@ class EvalConfig:
     condition: tuple[str, ...] = ()  # named evaluation conditions (`envs.conditions`), on the same starts as nominal
     realtime: RealtimeSpec | None = None  # real-time evaluation (`rollout.realtime`)
     policy_server: PolicyServerSpec | None = None  # act through LeRobot's PolicyServer (`policies.remote`)
+    controller: str = "payload-aware"  # the flight controller (spec: payload-aware; nominal: no payload estimate)
 
     def __post_init__(self):
+        ControllerMode.parse(self.controller)  # an unknown controller is one line here, not in a worker
         if not (isinstance(self.workers, int) and self.workers >= 1):
             raise ValueError(f"--workers must be a positive integer, got {self.workers}")
         if self.workers > 1 and self.num_envs > 1:
@@ -107,7 +110,7 @@ class EvalConfig:
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=reads_images and not self.blind,
             sim_backend=self.sim_backend, max_steps=self.max_steps, chained=bool(self.chain),
             third_person_episodes=self.video, blind=self.blind, condition=self.condition, realtime=self.realtime,
-            policy_server=self.policy_server,
+            policy_server=self.policy_server, controller=self.controller,
         )
         return ResolvedEval(config=self, setting=setting, chain=chain, checkpoints=checkpoints, input_tier=tier,
                             spec=spec)
@@ -176,6 +179,7 @@ def evaluate(
         "records": ",".join(str(f.relative_to(out)) for f in record_files),
         "command": command, "seen_in_training": held_out,
         **({"blind": True} if config.blind else {}),
+        **({"controller": config.controller} if config.controller != ControllerMode.PAYLOAD_AWARE else {}),
         **({"conditions": resolve_condition(spec.condition).records()} if spec.condition else {}),
         **({"realtime": config.realtime.as_dict()} if config.realtime else {}),
         **({"policy_server": list(config.policy_server.addresses)} if config.policy_server else {}),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime
 import json
+import math
 from collections import Counter
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -59,8 +60,21 @@ def _cell(rows: list[Mapping]) -> dict:
         "episodes": [[int(r["episode_index"]), r.get("seed"), r["outcome"]] for r in rows],
         "failure_analysis": failure_summary(executed),
         # median episode seconds of the successes (records' duration_s; None where none succeeded or none say)
-        "time_to_success_s": _median([r.get("duration_s") for r in executed if r["outcome"] == "S"]),
+        "time_to_success_s": median([r.get("duration_s") for r in executed if r["outcome"] == "S"]),
+        **flight_summary(executed),
     }
+
+
+def flight_summary(rows: list[Mapping]) -> dict:
+    """How hard the airframe was thrown about: over the episodes whose records carry it, the median and the largest of
+    each episode's maximum tilt, in degrees, and the episodes' values (`annotation.events` diagnostics; a condition's
+    effect beside success, pooled over cells by the robustness view)."""
+    tilts = [math.degrees(d["max_tilt_rad"]) for r in rows
+             if (d := r.get("diagnostics") or {}).get("max_tilt_rad") is not None]
+    if not tilts:
+        return {}
+    return {"flight": {"median_max_tilt_deg": median(tilts), "max_tilt_deg": max(tilts),
+                       "max_tilt_deg_per_episode": [round(t, 2) for t in tilts]}}
 
 
 ROTATION_BINS_DEG = (2.0, 16.0)  # spec Fig. "Grasp quality": no grasp under 2 deg is lost; loss rates above 16 deg
@@ -76,7 +90,7 @@ def _stage(row: Mapping, skill: str) -> tuple[str, dict] | None:
     return None
 
 
-def _median(values: list[float]) -> float | None:
+def median(values: list[float]) -> float | None:
     values = sorted(v for v in values if v is not None)
     if not values:
         return None
@@ -92,15 +106,15 @@ def failure_summary(rows: list[Mapping]) -> dict:
     if picks:
         failed = [d for outcome, d in picks if outcome != "S"]
         out["pick"] = {
-            "median_speed_at_finger_contact_mps": _median([d.get("speed_at_finger_contact_mps") for _, d in picks]),
-            "median_handoff_rotation_deg": _median([d.get("handoff_rotation_deg") for _, d in picks]),
+            "median_speed_at_finger_contact_mps": median([d.get("speed_at_finger_contact_mps") for _, d in picks]),
+            "median_handoff_rotation_deg": median([d.get("handoff_rotation_deg") for _, d in picks]),
             "failures": len(failed),
             "failures_knocked_object": sum(bool(d.get("knocked_object")) for d in failed),
             "failures_hit_scene": sum(bool(d.get("hit_scene")) and not d.get("knocked_object") for d in failed),
         }
     places = [s[1] for r in rows if (s := _stage(r, "place")) and "speed_at_release_mps" in s[1]]
     if places:
-        out["place"] = {"median_speed_at_release_mps": _median([d.get("speed_at_release_mps") for d in places])}
+        out["place"] = {"median_speed_at_release_mps": median([d.get("speed_at_release_mps") for d in places])}
     transports = [(r, s[1]) for r in rows
                   if r.get("segments") and (s := _stage(r, "nav")) and "grasp_loss_mechanism" in s[1]]
     if transports:

@@ -2,7 +2,7 @@
 of the same policy on the same starts, with the paired difference (`compare`: exact McNemar, Newcombe's interval).
 
 A conditioned run pairs with a nominal one when both evaluated the same policy and checkpoint on the same episode
-plan (setting, skills, objects, episodes per object, `--seed`); the view says nothing about a run without its nominal
+plan (setting, skills, objects, episodes per object, `--seed`) with the same flight controller; the view says nothing about a run without its nominal
 twin (it is listed as unpaired), so "drops 30 points in a 3 m/s gust" is only ever a paired statement.
 """
 
@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .compare import Run, compare, run_from_results
+from .results import median
 from .row_facts import perturbation
 
 
@@ -19,11 +20,18 @@ def _plan(result: dict) -> tuple:
     provenance = result["provenance"]
     return (result["setting"], result["policy"], str(provenance.get("checkpoint")), provenance.get("seed"),
             tuple(provenance.get("chain") or ()), tuple(provenance.get("skills") or ()),
-            tuple(provenance.get("objects") or ()), provenance.get("episodes_per_object"), provenance.get("max_steps"))
+            tuple(provenance.get("objects") or ()), provenance.get("episodes_per_object"), provenance.get("max_steps"),
+            provenance.get("controller", "payload-aware"))
 
 
 def _run(result: dict) -> Run:
     return run_from_results(Path(result.get("_path") or "results.json"), result)
+
+
+def _tilt(result: dict) -> str:
+    """The median over a run's episodes of their largest tilt, in degrees ("-" where the results do not say)."""
+    tilts = [t for c in result["cells"] for t in (c.get("flight") or {}).get("max_tilt_deg_per_episode", ())]
+    return f"{median(tilts):.1f}" if tilts else "-"
 
 
 def robustness_rows(results: Sequence[dict]) -> list[dict]:
@@ -57,20 +65,23 @@ def robustness_markdown(results: Sequence[dict], name) -> list[str]:
     lines = ["", "### Robustness: conditions and real-time evaluation", "",
              "Each perturbed run beside the nominal run of the same policy and checkpoint on the same starts. Change: "
              "perturbed minus nominal success, in points, with its paired 95% interval (Newcombe) and the exact "
-             "McNemar p-value over the episodes both runs scored (docs/robustness.md).", "",
-             "| Row | Inputs | Perturbation | Paired episodes | Nominal % | Perturbed % | Change (pts) [95%] | p |",
-             "|---|---|---|---|---|---|---|---|"]
+             "McNemar p-value over the episodes both runs scored (docs/robustness.md). Tilt: the median over "
+             "episodes of each episode's largest tilt, nominal -> perturbed (records that carry it).", "",
+             "| Row | Inputs | Perturbation | Paired episodes | Nominal % | Perturbed % | Change (pts) [95%] | p | "
+             "Tilt, median max (deg) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         result, cmp = row["result"], row["comparison"]
         inputs = result.get("inputs", "-")
         if cmp is None:
             lines.append(f"| {name(result)} | {inputs} | {row['perturbation']} | unpaired: no nominal run of this "
-                         f"checkpoint on these starts | - | {100 * result['mean_sr']:.1f} (mean S.R.) | - | - |")
+                         f"checkpoint on these starts | - | {100 * result['mean_sr']:.1f} (mean S.R.) | - | - | "
+                         f"{_tilt(result)} |")
             continue
         overall = cmp["overall"]
         lo, hi = overall["diff95"]  # nominal minus perturbed
         lines.append(f"| {name(result)} | {inputs} | {row['perturbation']} | {overall['n']} | "
                      f"{100 * overall['rate_a']:.1f} | {100 * overall['rate_b']:.1f} | "
                      f"{100 * (overall['rate_b'] - overall['rate_a']):+.1f} [{-100 * hi:+.1f}, {-100 * lo:+.1f}] | "
-                     f"{overall['p_value']:.3g} |")
+                     f"{overall['p_value']:.3g} | {_tilt(row['nominal'])} -> {_tilt(result)} |")
     return lines

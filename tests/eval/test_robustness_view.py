@@ -47,3 +47,41 @@ def test_a_perturbed_run_is_paired_with_its_nominal_twin_and_the_change_is_signe
 def test_a_leaderboard_without_perturbed_runs_has_no_robustness_view(tmp_path):
     results = load_all([_results(tmp_path, "bc", ["S", "F", "S"])])["TidyHouse"]
     assert "Robustness" not in render_markdown(SettingTable("TidyHouse", results))
+
+
+def test_a_run_pairs_only_with_the_nominal_run_of_its_own_flight_controller(tmp_path):
+    aware = _results(tmp_path, "expert", ["S"] * 20)
+    nominal_controller = _results(tmp_path, "expert nominal controller", ["S"] * 10 + ["F"] * 10, controller="nominal")
+    heavy = _results(tmp_path, "expert nominal controller heavy", ["S"] * 5 + ["F"] * 15, controller="nominal",
+                     conditions=[{"name": "payload_heavy", "version": 1, "parameters": {}, "source": "spec"}])
+    rows = robustness_rows(load_all([aware, nominal_controller, heavy])["TidyHouse"])
+    assert [r["nominal"]["label"] for r in rows] == ["expert nominal controller"]  # not the payload-aware run
+
+
+def test_an_unknown_flight_controller_is_one_line_before_any_work():
+    from aerobench.eval.evaluate import EvalConfig
+
+    with pytest.raises(ValueError, match="unknown controller 'pid'; valid controllers: payload-aware, nominal"):
+        EvalConfig(policy="expert", setting="TidyHouse", controller="pid")
+
+
+def test_the_view_shows_how_far_the_airframe_tilted_beside_success(tmp_path):
+    import math
+
+    def with_tilts(name, outcomes, degrees, **provenance):
+        rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "skill": "pick",
+                 "object": "sugar_box", "policy": "expert", "outcome": o, "mode": "m", "cause": "",
+                 "diagnostics": {"max_tilt_rad": math.radians(d)}} for i, (o, d) in enumerate(zip(outcomes, degrees))]
+        base = {"seed": 4200, "checkpoint": None, "skills": ["pick"], "objects": ["sugar_box"],
+                "episodes_per_object": len(outcomes), "max_steps": None}
+        return write_results(tmp_path / f"{name}.json", summarize(rows, {**base, **provenance}, label=name,
+                                                                  inputs="privileged"))
+
+    calm = with_tilts("expert", ["S"] * 3, [4.0, 5.0, 6.0])
+    gusty = with_tilts("expert gusty", ["S", "F", "F"], [10.0, 30.0, 20.0], conditions=WIND)
+    results = load_all([calm, gusty])["TidyHouse"]
+    cell = next(r for r in results if r["label"] == "expert gusty")["cells"][0]
+    assert cell["flight"]["median_max_tilt_deg"] == pytest.approx(20.0) and cell["flight"]["max_tilt_deg"] == pytest.approx(30.0)
+    line = next(line for line in render_markdown(SettingTable("TidyHouse", results)).splitlines()
+                if "wind_gusty_3ms v1" in line and "| 3 |" in line)
+    assert line.endswith("| 5.0 -> 20.0 |")
