@@ -8,7 +8,7 @@ switch (eager everywhere), `AEROBENCH_DIRECT_CALL=0` keeps the package's own run
 (which reads the generated wrapper) live here and nowhere else, each measured in docs/performance.md. Nothing here has
 a process-global side effect at import.
 
-Floor 0: imports nothing of aerobench but `file_lock`; envs and the expert call it, never the reverse.
+Below the envs: imports nothing of aerobench but `file_lock`; the envs and the expert call it, never the reverse.
 """
 
 from .kernels import Kernel, all_contiguous, compile_requested, direct_call_requested, shared_kernel
