@@ -231,6 +231,7 @@ DIAGNOSTICS: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
     ("max_nontarget_contact_force_n", "nontarget_contact_force", "max", EVERY_SKILL),
     ("max_airframe_contact_force_n", "airframe_contact_force", "max", EVERY_SKILL),
     ("min_obstacle_clearance_m", "min_obstacle_clearance", "min", EVERY_SKILL),
+    ("rotor_saturated_steps", "rotor_saturated", "count", EVERY_SKILL),  # where recorded (`rotor_statistics`)
     ("fail_tilt_steps", "fail_tilt", "count", EVERY_SKILL),  # every envelope flag, not only the first latched cause
     ("fail_low_steps", "fail_low", "count", EVERY_SKILL),
     ("fail_high_steps", "fail_high", "count", EVERY_SKILL),

@@ -37,6 +37,9 @@ def add_generate(sub) -> None:
     p.add_argument("--action-noise", type=float, default=0.0,
                    help="DART noise: std of Gaussian noise on the executed flight commands (normalised units, e.g. "
                         "0.05); the dataset records the policy's own actions (docs/datasets.md)")
+    p.add_argument("--look-first", action="store_true",
+                   help="Pick: the expert first turns on the spot until the object is straight ahead, so every move "
+                        "it demonstrates is visible in the cameras (data for camera policies; docs/datasets.md)")
     add_condition_option(p)
     p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads of this process (1: each core runs "
@@ -60,6 +63,7 @@ def _run_generate(args) -> int:
             labeler=args.label_with, platform=args.platform,
             controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
             rendering=args.render, action_noise=args.action_noise, condition=args.condition,
+            look_first=args.look_first,
         )
         if spec.rendering == "ray-traced" and args.ray is None:
             from ..envs.rendering import require_ray_tracing

@@ -75,7 +75,8 @@ def freeze_process_heap() -> None:
 class AerialEnv(BaseEnv):
     """Base of aerobench envs. Args (besides ManiSkill's): `platform`, `controller`, `physx_solver`, `rendering`
     ("rasterized" or "ray-traced": every camera through SAPIEN's ray tracer; needs a ray-tracing GPU), `condition`
-    (names of evaluation conditions, `conditions.CONDITIONS`, as a tuple or "a,b"; default none: today's physics).
+    (names of evaluation conditions, `conditions.CONDITIONS`, as a tuple or "a,b"; default none: today's physics),
+    `rotor_statistics` (also record whether the rotors are saturated at each control step: `flight_statistics`).
 
     Every random draw of a reset comes from `episode_rng` (`episode_rng.py`: one generator per env, seeded by that
     env's episode seed), never from torch's global generator, which ManiSkill seeds with env 0's seed only. The
@@ -91,8 +92,9 @@ class AerialEnv(BaseEnv):
 
     def __init__(self, *args, platform: str = "gripper", controller: str = "payload-aware",
                  physx_solver: str | None = None, rendering: str = DEFAULT_RENDERING,
-                 condition: str | tuple[str, ...] | None = (), **kwargs):
+                 condition: str | tuple[str, ...] | None = (), rotor_statistics: bool = False, **kwargs):
         self.condition: ConditionSet | None = resolve_condition(condition)
+        self.rotor_statistics = bool(rotor_statistics)
         if self.condition is not None and not self.supports_task_conditions and (
                 self.condition.senses or self.condition.payload_mass_scale is not None):
             raise ValueError(f"{type(self).__name__} has no policy observation or carried object for the sensor and "
@@ -113,6 +115,13 @@ class AerialEnv(BaseEnv):
         # SAPIEN renders on the CPU where torch sees no GPU: ManiSkill's default asks for CUDA and warns per env
         kwargs.setdefault("render_backend", "gpu" if torch.cuda.is_available() else "cpu")
         super().__init__(*args, robot_uids=AGENT_UIDS[self.platform.name], **kwargs)
+
+    def flight_statistics(self) -> dict[str, torch.Tensor]:
+        """Per-step flight signals that cost a side computation, only where asked (`rotor_statistics=True`, as
+        `aerobench eval` does): "rotor_saturated" `(N,)`, whether the controller's rotor thrusts are clipped now."""
+        if not self.rotor_statistics:
+            return {}
+        return {"rotor_saturated": self.agent.body_controller.rotor_saturated()}
 
     @property
     def _default_sim_config(self) -> SimConfig:

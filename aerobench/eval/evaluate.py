@@ -110,7 +110,7 @@ class EvalConfig:
             policy=self.policy, checkpoint=self.checkpoint, record_cameras=reads_images and not self.blind,
             sim_backend=self.sim_backend, max_steps=self.max_steps, chained=bool(self.chain),
             third_person_episodes=self.video, blind=self.blind, condition=self.condition, realtime=self.realtime,
-            policy_server=self.policy_server, controller=self.controller,
+            policy_server=self.policy_server, controller=self.controller, rotor_statistics=True,
         )
         return ResolvedEval(config=self, setting=setting, chain=chain, checkpoints=checkpoints, input_tier=tier,
                             spec=spec)

@@ -67,14 +67,22 @@ def _cell(rows: list[Mapping]) -> dict:
 
 def flight_summary(rows: list[Mapping]) -> dict:
     """How hard the airframe was thrown about: over the episodes whose records carry it, the median and the largest of
-    each episode's maximum tilt, in degrees, and the episodes' values (`annotation.events` diagnostics; a condition's
+    each episode's maximum tilt, in degrees, and the episodes' values; where recorded, the same for the share of its
+    control steps at which a rotor's thrust was clipped (`annotation.events` diagnostics; a condition's
     effect beside success, pooled over cells by the robustness view)."""
     tilts = [math.degrees(d["max_tilt_rad"]) for r in rows
              if (d := r.get("diagnostics") or {}).get("max_tilt_rad") is not None]
     if not tilts:
         return {}
-    return {"flight": {"median_max_tilt_deg": median(tilts), "max_tilt_deg": max(tilts),
-                       "max_tilt_deg_per_episode": [round(t, 2) for t in tilts]}}
+    flight = {"median_max_tilt_deg": median(tilts), "max_tilt_deg": max(tilts),
+              "max_tilt_deg_per_episode": [round(t, 2) for t in tilts]}
+    # the share of each episode's control steps with a clipped rotor (records of `rotor_statistics` runs)
+    shares = [d["rotor_saturated_steps"] / r["steps"] for r in rows
+              if (d := r.get("diagnostics") or {}).get("rotor_saturated_steps") is not None and r.get("steps")]
+    if shares:
+        flight |= {"median_saturated_share": median(shares), "saturated_episodes": sum(s > 0 for s in shares),
+                   "saturated_share_per_episode": [round(s, 4) for s in shares]}
+    return {"flight": flight}
 
 
 ROTATION_BINS_DEG = (2.0, 16.0)  # spec Fig. "Grasp quality": no grasp under 2 deg is lost; loss rates above 16 deg

@@ -34,6 +34,13 @@ def _tilt(result: dict) -> str:
     return f"{median(tilts):.1f}" if tilts else "-"
 
 
+def _saturation(result: dict | None) -> str:
+    """The median over a run's episodes of the share of control steps with a clipped rotor, in percent ("-" where
+    the results do not record it: runs before `rotor_statistics`)."""
+    shares = [s for c in (result or {}).get("cells", ()) for s in (c.get("flight") or {}).get("saturated_share_per_episode", ())]
+    return f"{100 * median(shares):.1f}" if shares else "-"
+
+
 def robustness_rows(results: Sequence[dict]) -> list[dict]:
     """One row per perturbed run: `{"result", "nominal", "perturbation", "comparison"}`, the comparison None when the
     nominal twin is missing or its episodes cannot be paired."""
@@ -66,22 +73,25 @@ def robustness_markdown(results: Sequence[dict], name) -> list[str]:
              "Each perturbed run beside the nominal run of the same policy and checkpoint on the same starts. Change: "
              "perturbed minus nominal success, in points, with its paired 95% interval (Newcombe) and the exact "
              "McNemar p-value over the episodes both runs scored (docs/robustness.md). Tilt: the median over "
-             "episodes of each episode's largest tilt, nominal -> perturbed (records that carry it).", "",
+             "episodes of each episode's largest tilt, nominal -> perturbed (records that carry it). Saturated: the "
+             "median over episodes of the share of control steps at which a rotor's commanded thrust was clipped (at "
+             "zero or at its maximum), nominal -> perturbed.", "",
              "| Row | Inputs | Perturbation | Paired episodes | Nominal % | Perturbed % | Change (pts) [95%] | p | "
-             "Tilt, median max (deg) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "Tilt, median max (deg) | Saturated, median (% of steps) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         result, cmp = row["result"], row["comparison"]
         inputs = result.get("inputs", "-")
         if cmp is None:
             lines.append(f"| {name(result)} | {inputs} | {row['perturbation']} | unpaired: no nominal run of this "
                          f"checkpoint on these starts | - | {100 * result['mean_sr']:.1f} (mean S.R.) | - | - | "
-                         f"{_tilt(result)} |")
+                         f"{_tilt(result)} | {_saturation(result)} |")
             continue
         overall = cmp["overall"]
         lo, hi = overall["diff95"]  # nominal minus perturbed
         lines.append(f"| {name(result)} | {inputs} | {row['perturbation']} | {overall['n']} | "
                      f"{100 * overall['rate_a']:.1f} | {100 * overall['rate_b']:.1f} | "
                      f"{100 * (overall['rate_b'] - overall['rate_a']):+.1f} [{-100 * hi:+.1f}, {-100 * lo:+.1f}] | "
-                     f"{overall['p_value']:.3g} | {_tilt(row['nominal'])} -> {_tilt(result)} |")
+                     f"{overall['p_value']:.3g} | {_tilt(row['nominal'])} -> {_tilt(result)} | "
+                     f"{_saturation(row['nominal'])} -> {_saturation(result)} |")
     return lines

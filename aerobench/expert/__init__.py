@@ -10,6 +10,7 @@ from __future__ import annotations
 import torch
 
 from ..envs.skills.pick import ENCLOSED_KINDS
+from .look import LookFirst
 from .nav import NavExpert
 from .pick import PickExpert
 from .place import PlaceExpert
@@ -33,9 +34,10 @@ def _expert_for(env, evaluator, carrying: bool, after_stage: bool, following=Non
 
 
 class ExpertController:
-    """Acts for every env of a skill or sequential env; chains switch expert when the env's stage advances."""
+    """Acts for every env of a skill or sequential env; chains switch expert when the env's stage advances.
+    `look_first`: a Pick skill's expert first turns on the spot to face its object (`look.LookFirst`)."""
 
-    def __init__(self, env):
+    def __init__(self, env, look_first: bool = False):
         if not hasattr(env, "evaluators"):  # e.g. AeroFly-v1, the flight test: no task for an expert to solve
             raise ValueError(f"the expert acts in the skill and task envs (AeroPick-v1, ...), not in {type(env).__name__}: "
                              "drive it with velocity commands instead")
@@ -49,6 +51,10 @@ class ExpertController:
                             previous=previous)
             )
             carrying = evaluator.skill == "pick" or (carrying and evaluator.skill != "place")
+        if look_first:
+            if len(self.experts) != 1:
+                raise ValueError("--look-first demonstrates the Pick skill alone, not a chain")
+            self.experts[0] = LookFirst(self.experts[0])
         self.stage = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
 
     def reset(self, env_idx: torch.Tensor) -> None:

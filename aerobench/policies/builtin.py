@@ -12,15 +12,16 @@ from .registry import register_policy
 
 @register_policy("expert")
 class ExpertPolicy:
-    """The privileged hybrid expert (reads simulator state, not the observation)."""
+    """The privileged hybrid expert (reads simulator state, not the observation). `look_first`: a Pick expert that
+    first turns on the spot to face its object (`expert.look`; demonstrations for camera policies)."""
 
     name = "expert"
     input_tier = staticmethod(lambda checkpoint=None: tiers.PRIVILEGED.name)  # it acts on the simulator's state
 
-    def __init__(self, env, checkpoint: str | None = None, **_):
+    def __init__(self, env, checkpoint: str | None = None, look_first: bool = False, **_):
         if checkpoint:
             raise ValueError("the expert policy takes no --checkpoint")
-        self.controller = ExpertController(env)
+        self.controller = ExpertController(env, look_first=look_first)
 
     def reset(self, env_idx):
         self.controller.reset(env_idx)

@@ -61,6 +61,9 @@ class RolloutSpec:
     physx_solver: str = field(default_factory=default_physx_solver)  # "pgs" (default) or "tgs" (rows before 2026-11-25)
     rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
+    # the expert of a Pick first turns on the spot to face its object (`expert.look`): what it demonstrates is then
+    # visible in the cameras at every step (demonstrations for camera policies)
+    look_first: bool = False
     action_noise: float = 0.0  # DART: executed flight commands get N(0, sigma^2); the recorded action stays clean
     # named evaluation conditions the envs run under (`envs.conditions`; none: today's physics); the starts are the
     # same under every condition (the conditions draw from their own streams)
@@ -72,6 +75,9 @@ class RolloutSpec:
     # their shape instead (a LeRobot policy trained with blanked images; aerobench's `train bc --blind` checkpoints
     # blank their own)
     blind: bool = False
+    # also record, each control step, whether the controller's rotor thrusts are clipped (`AerialEnv.flight_statistics`;
+    # a side computation that changes no result, so not part of the run's identity; `aerobench eval` turns it on)
+    rotor_statistics: bool = False
     realtime: RealtimeSpec | None = None  # the simulation keeps stepping while the policy computes (`rollout.realtime`)
     # the policy acts through LeRobot's PolicyServer (`policies.remote`); where it is served is not part of the run's
     # identity (`as_dict`): a run resumes against a server restarted elsewhere
@@ -124,6 +130,10 @@ class RolloutSpec:
                                  "and its --checkpoint (e.g. --policy bc --checkpoint RUN/checkpoint)")
             if self.chained:
                 raise ValueError("--label-with labels single-skill or chain rollouts, not the chained protocol's")
+        if self.look_first and (self.policy != "expert" or self.chained or self.labeler):
+            raise ValueError("--look-first changes how the expert flies a Pick: use it with --policy expert alone")
+        if self.look_first and self.skills != ("pick",):
+            raise ValueError(f"--look-first turns to a Pick's object: give --skills pick, not {','.join(self.skills)}")
         if self.blind and self.record_cameras:
             raise ValueError("a blind evaluation renders no camera: it records none")
         if self.sim_backend == "physx_cpu" and self.num_envs != 1:
@@ -155,6 +165,7 @@ class RolloutSpec:
             **({"physx_solver": self.physx_solver} if self.physx_solver != "tgs" else {}),
             **({"rendering": self.rendering} if self.rendering != DEFAULT_RENDERING else {}),
             **({"action_noise": self.action_noise} if self.action_noise else {}),
+            **({"look_first": True} if self.look_first else {}),
             **({"condition": list(self.condition)} if self.condition else {}),
             **({"labeler": self.labeler} if self.labeler else {}),
             **({"blind": True} if self.blind else {}),
@@ -250,6 +261,8 @@ class RolloutRunner:
                 kwargs["max_episode_steps"] = spec.max_steps
             if spec.condition:
                 kwargs["condition"] = spec.condition
+            if spec.rotor_statistics:
+                kwargs["rotor_statistics"] = True
             if spec.is_chain:
                 env_id, kwargs["chain"] = "AeroSequential-v1", skill
             else:
@@ -294,7 +307,8 @@ class RolloutRunner:
             policy = RemotePolicy(base, spec.policy_server.address_for(spec.shard), spec.policy, checkpoint,
                                   device=spec.policy_server.device)
         else:
-            policy = make_policy(spec.policy, base, checkpoint=checkpoint)
+            policy = make_policy(spec.policy, base, checkpoint=checkpoint,
+                                 **({"look_first": True} if spec.look_first else {}))
         return RealtimePolicy(policy, base, spec.realtime) if spec.realtime is not None else policy
 
     def _run_batch(self, skill: str, plans: list[EpisodePlan]) -> list[EpisodeData]:

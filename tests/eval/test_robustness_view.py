@@ -84,4 +84,28 @@ def test_the_view_shows_how_far_the_airframe_tilted_beside_success(tmp_path):
     assert cell["flight"]["median_max_tilt_deg"] == pytest.approx(20.0) and cell["flight"]["max_tilt_deg"] == pytest.approx(30.0)
     line = next(line for line in render_markdown(SettingTable("TidyHouse", results)).splitlines()
                 if "wind_gusty_3ms v1" in line and "| 3 |" in line)
-    assert line.endswith("| 5.0 -> 20.0 |")
+    assert line.endswith("| 5.0 -> 20.0 | - -> - |")  # runs that did not record saturation say so
+
+
+def test_the_view_shows_the_share_of_steps_with_a_clipped_rotor(tmp_path):
+    import math
+
+    def with_saturation(name, outcomes, saturated, **provenance):
+        rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "skill": "pick",
+                 "object": "sugar_box", "policy": "expert", "outcome": o, "mode": "m", "cause": "", "steps": 100,
+                 "diagnostics": {"max_tilt_rad": math.radians(5.0), "rotor_saturated_steps": k}}
+                for i, (o, k) in enumerate(zip(outcomes, saturated))]
+        base = {"seed": 4200, "checkpoint": None, "skills": ["pick"], "objects": ["sugar_box"],
+                "episodes_per_object": len(outcomes), "max_steps": None}
+        return write_results(tmp_path / f"{name}.json", summarize(rows, {**base, **provenance}, label=name,
+                                                                  inputs="privileged"))
+
+    calm = with_saturation("expert", ["S"] * 3, [0, 0, 2])
+    gusty = with_saturation("expert gusty", ["S", "F", "F"], [10, 40, 25], conditions=WIND)
+    results = load_all([calm, gusty])["TidyHouse"]
+    flight = next(r for r in results if r["label"] == "expert gusty")["cells"][0]["flight"]
+    assert flight["median_saturated_share"] == pytest.approx(0.25) and flight["saturated_episodes"] == 3
+    assert flight["saturated_share_per_episode"] == [0.1, 0.4, 0.25]
+    line = next(line for line in render_markdown(SettingTable("TidyHouse", results)).splitlines()
+                if "wind_gusty_3ms v1" in line and "| 3 |" in line)
+    assert line.endswith("| 5.0 -> 5.0 | 0.0 -> 25.0 |")

@@ -30,6 +30,8 @@ from ..platforms import MAX_SPEED_MPS, MAX_YAW_RATE_RPS, PlatformSpec
 if TYPE_CHECKING:
     from ..conditions.physics import ConditionedPhysics
 
+SATURATION_TOLERANCE = 1e-4  # a rotor within this share of its limit (or of zero) counts as clipped
+
 
 class AerialBodyController(BaseController):
     config: AerialBodyControllerConfig
@@ -228,6 +230,22 @@ class AerialBodyController(BaseController):
             self._cpu_articulation.set_qf(qf.numpy()[0])
         else:
             self.articulation.set_qf(qf)
+
+    def rotor_saturated(self) -> torch.Tensor:
+        """`(N,)` whether the rotor thrusts the controller would command now (this state, command and memory) are
+        clipped: a rotor at zero or at its maximum (under a reduced-headroom condition, the reduced maximum). A side
+        computation on copies, sampled once per control step for the statistics (`rotor_statistics`): it changes
+        nothing the simulation does."""
+        q_all, qd_all = self.joint_state()
+        m = self.memory
+        extra = (self.arm_target, self.contact_mode) if self.arm is not None else ()
+        result = self.step_fn.eager(q_all[:, self._joints], qd_all[:, self._joints], self.velocity_cmd.clone(),
+                                    self.yaw_rate_cmd.clone(), m.xi.clone(), m.yaw_des.clone(), m.mass_hat, m.k_R,
+                                    m.k_w, torch.zeros_like(self._needs_yaw_sync), *extra)
+        headroom = self.conditioned.condition.headroom if self.conditioned is not None else None
+        top = self.params.max_rotor_thrust * (headroom.thrust_scale if headroom is not None else 1.0)
+        thrusts = result.rotor_thrusts
+        return ((thrusts >= top * (1.0 - SATURATION_TOLERANCE)) | (thrusts <= SATURATION_TOLERANCE * top)).any(-1)
 
     @property
     def last_output(self) -> FlightOutput | None:

@@ -432,6 +432,7 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
             "init_failed": self.init_failed.clone(),
             "subtask_index": active,
             **envelope,
+            **self.flight_statistics(),
         }
         if ctx.object_pose is not None:
             info.update(

@@ -178,9 +178,14 @@ class PickEvaluator(SkillEvaluator):
         return self.free_height
 
     def begin(self, env_idx):
-        pose = self.env.target.pose
-        self.rest_z[env_idx] = pose.p[env_idx, 2]
+        self.rest_z[env_idx] = self.env.target.pose.p[env_idx, 2]
         self.hold_streak[env_idx] = 0
+        self.plan_heading(env_idx)
+
+    def plan_heading(self, env_idx):
+        """Plan the grasp heading from the drone's heading now: at the skill's start, and again by a demonstrator
+        that first turned on the spot to face the object."""
+        pose = self.env.target.pose
         object_yaw = 2 * torch.atan2(pose.q[:, 3], pose.q[:, 0])
         reference = torch.where(self.enclosed, self.inward, self.env.agent.airframe_state().yaw)
         planned = grasp_heading(object_yaw, reference, self.is_round)
