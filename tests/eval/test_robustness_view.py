@@ -1,6 +1,7 @@
 """The leaderboard's robustness view: a perturbed run beside the nominal run of the same checkpoint on the same
 starts, with the paired change and its interval; a run without its nominal twin is listed as unpaired."""
 
+import math
 from pathlib import Path
 
 import pytest
@@ -65,47 +66,42 @@ def test_an_unknown_flight_controller_is_one_line_before_any_work():
         EvalConfig(policy="expert", setting="TidyHouse", controller="pid")
 
 
+def _flown(tmp_path: Path, name: str, outcomes: list[str], diagnostics: list[dict], **provenance) -> Path:
+    """An expert Pick run of `outcomes` whose records carry `diagnostics` (one dict per episode), 100 steps each."""
+    rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "skill": "pick",
+             "object": "sugar_box", "policy": "expert", "outcome": o, "mode": "m", "cause": "", "steps": 100,
+             "diagnostics": d} for i, (o, d) in enumerate(zip(outcomes, diagnostics))]
+    base = {"seed": 4200, "checkpoint": None, "skills": ["pick"], "objects": ["sugar_box"],
+            "episodes_per_object": len(outcomes), "max_steps": None}
+    return write_results(tmp_path / f"{name}.json", summarize(rows, {**base, **provenance}, label=name,
+                                                              inputs="privileged"))
+
+
+def _gusty_line(results) -> str:
+    return next(line for line in render_markdown(SettingTable("TidyHouse", results)).splitlines()
+                if "wind_gusty_3ms v1" in line and "| 3 |" in line)
+
+
 def test_the_view_shows_how_far_the_airframe_tilted_beside_success(tmp_path):
-    import math
+    def tilts(degrees):
+        return [{"max_tilt_rad": math.radians(d)} for d in degrees]
 
-    def with_tilts(name, outcomes, degrees, **provenance):
-        rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "skill": "pick",
-                 "object": "sugar_box", "policy": "expert", "outcome": o, "mode": "m", "cause": "",
-                 "diagnostics": {"max_tilt_rad": math.radians(d)}} for i, (o, d) in enumerate(zip(outcomes, degrees))]
-        base = {"seed": 4200, "checkpoint": None, "skills": ["pick"], "objects": ["sugar_box"],
-                "episodes_per_object": len(outcomes), "max_steps": None}
-        return write_results(tmp_path / f"{name}.json", summarize(rows, {**base, **provenance}, label=name,
-                                                                  inputs="privileged"))
-
-    calm = with_tilts("expert", ["S"] * 3, [4.0, 5.0, 6.0])
-    gusty = with_tilts("expert gusty", ["S", "F", "F"], [10.0, 30.0, 20.0], conditions=WIND)
+    calm = _flown(tmp_path, "expert", ["S"] * 3, tilts([4.0, 5.0, 6.0]))
+    gusty = _flown(tmp_path, "expert gusty", ["S", "F", "F"], tilts([10.0, 30.0, 20.0]), conditions=WIND)
     results = load_all([calm, gusty])["TidyHouse"]
     cell = next(r for r in results if r["label"] == "expert gusty")["cells"][0]
     assert cell["flight"]["median_max_tilt_deg"] == pytest.approx(20.0) and cell["flight"]["max_tilt_deg"] == pytest.approx(30.0)
-    line = next(line for line in render_markdown(SettingTable("TidyHouse", results)).splitlines()
-                if "wind_gusty_3ms v1" in line and "| 3 |" in line)
-    assert line.endswith("| 5.0 -> 20.0 | - -> - |")  # runs that did not record saturation say so
+    assert _gusty_line(results).endswith("| 5.0 -> 20.0 | - -> - |")  # runs that did not record saturation say so
 
 
 def test_the_view_shows_the_share_of_steps_with_a_clipped_rotor(tmp_path):
-    import math
+    def clipped(steps):
+        return [{"max_tilt_rad": math.radians(5.0), "rotor_saturated_steps": k} for k in steps]
 
-    def with_saturation(name, outcomes, saturated, **provenance):
-        rows = [{"episode_index": i, "seed": 4200 * 1_000_003 + i, "setting": "TidyHouse", "skill": "pick",
-                 "object": "sugar_box", "policy": "expert", "outcome": o, "mode": "m", "cause": "", "steps": 100,
-                 "diagnostics": {"max_tilt_rad": math.radians(5.0), "rotor_saturated_steps": k}}
-                for i, (o, k) in enumerate(zip(outcomes, saturated))]
-        base = {"seed": 4200, "checkpoint": None, "skills": ["pick"], "objects": ["sugar_box"],
-                "episodes_per_object": len(outcomes), "max_steps": None}
-        return write_results(tmp_path / f"{name}.json", summarize(rows, {**base, **provenance}, label=name,
-                                                                  inputs="privileged"))
-
-    calm = with_saturation("expert", ["S"] * 3, [0, 0, 2])
-    gusty = with_saturation("expert gusty", ["S", "F", "F"], [10, 40, 25], conditions=WIND)
+    calm = _flown(tmp_path, "expert", ["S"] * 3, clipped([0, 0, 2]))
+    gusty = _flown(tmp_path, "expert gusty", ["S", "F", "F"], clipped([10, 40, 25]), conditions=WIND)
     results = load_all([calm, gusty])["TidyHouse"]
     flight = next(r for r in results if r["label"] == "expert gusty")["cells"][0]["flight"]
     assert flight["median_saturated_share"] == pytest.approx(0.25) and flight["saturated_episodes"] == 3
     assert flight["saturated_share_per_episode"] == [0.1, 0.4, 0.25]
-    line = next(line for line in render_markdown(SettingTable("TidyHouse", results)).splitlines()
-                if "wind_gusty_3ms v1" in line and "| 3 |" in line)
-    assert line.endswith("| 5.0 -> 5.0 | 0.0 -> 25.0 |")
+    assert _gusty_line(results).endswith("| 5.0 -> 5.0 | 0.0 -> 25.0 |")
