@@ -140,3 +140,30 @@ def is_pose_free(
     n, k = positions.shape[:2]
     pts = level_drone_points(positions, yaw, points_body).reshape(n, -1, 3)
     return points_clear_of_boxes(pts, boxes, clearance_m).reshape(n, k, -1).all(dim=-1)
+
+
+VIEW_POINT_CANDIDATES = 12  # directions around the target tried at each distance
+
+
+def free_view_point(target: torch.Tensor, boxes: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor) -> torch.Tensor:
+    """`(M, 3)` a point 0.9 m above and 2.2, 1.6 or 1.1 m beside each `target` `(M, 3)` (the farthest that works) that
+    lies inside the workspace `lo`..`hi` `(M, 3)` and more than 0.1 m from every box (`boxes`, `pack_boxes` layout),
+    the one with the most clearance; where none does, 1.6 m behind and 0.9 m above (a third-person camera's eye)."""
+    m, device = len(target), target.device
+    angles = torch.linspace(0, 2 * math.pi, VIEW_POINT_CANDIDATES + 1, device=device)[:-1]
+    best_eye = target + torch.tensor([-1.6, 0.0, 0.9], device=device)
+    best_score = torch.full((m,), -1e9, device=device)
+    for dist in (2.2, 1.6, 1.1):
+        eye = target[:, None] + torch.stack(
+            [dist * torch.cos(angles), dist * torch.sin(angles), torch.full_like(angles, 0.9)], -1
+        )[None]
+        eye[..., 2] = torch.minimum(eye[..., 2], hi[:, None, 2] - 0.15)
+        clearance = point_box_distance(eye, boxes).min(-1).values
+        inside = ((eye > lo[:, None] + 0.05) & (eye < hi[:, None] - 0.05)).all(-1)
+        score = torch.where(inside & (clearance > 0.1), clearance + dist, torch.full_like(clearance, -1e9))
+        k = score.argmax(-1)
+        top = score[torch.arange(m), k]
+        better = top > best_score
+        best_eye = torch.where(better[:, None], eye[torch.arange(m), k], best_eye)
+        best_score = torch.maximum(best_score, top)
+    return best_eye

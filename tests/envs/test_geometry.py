@@ -9,6 +9,7 @@ import torch
 from aerobench.envs.geometry import (
     boxes_near,
     drone_proxy_points_body,
+    free_view_point,
     is_pose_free,
     level_drone_points,
     min_distance_to_boxes,
@@ -76,3 +77,18 @@ def test_point_box_distance_is_the_signed_distance():
             np.testing.assert_allclose(got[i, :, j], expected, atol=2e-6)
     assert inside >= n * b  # the inside branch is exercised
     assert torch.equal(min_distance_to_boxes(points, boxes), point_box_distance(points, boxes).flatten(1).amin(1))
+
+
+def test_a_view_point_is_in_the_room_and_clear_of_the_furniture_or_the_default_behind():
+    from aerobench.envs.scenes.layout import Box
+
+    target = torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    wall = Box("wall", (3.0, 0.0, 1.5), (0.5, 5.0, 1.5))  # blocks every eye on the +x side
+    boxes = pack_boxes([[wall], [wall]])
+    lo = torch.tensor([[-5.0, -5.0, 0.0], [-0.1, -0.1, 0.0]])  # the second room leaves no candidate inside
+    hi = torch.tensor([[5.0, 5.0, 3.0], [0.1, 0.1, 3.0]])
+    eye = free_view_point(target, boxes, lo, hi)
+    assert torch.all(eye[0] > lo[0]) and torch.all(eye[0] < hi[0])
+    assert float(point_box_distance(eye[:1, None], boxes[:1]).min()) > 0.1
+    assert torch.linalg.norm(eye[0, :2]) == pytest.approx(2.2, abs=1e-4)  # the farthest ring that fits
+    assert torch.allclose(eye[1], torch.tensor([-1.6, 0.0, 1.9]))

@@ -40,7 +40,7 @@ from ..conditions.sensors import proprio_with_estimate
 from ..contacts import ContactReader, ContactReadout
 from ..control.arm import arm_point_positions_body
 from ..control.virtual_joints import AirframeState
-from ..geometry import drone_proxy_points_body, min_distance_to_boxes, pack_boxes, point_box_distance
+from ..geometry import drone_proxy_points_body, free_view_point, min_distance_to_boxes, pack_boxes
 from ..objects import ObjectSpec, build_object, get_object
 from ..observations import GRASP_CONFIRM_STEPS, heading_frame
 from ..poses import linear_velocity_of, raw_pose_of, raw_quats_of
@@ -53,8 +53,6 @@ from ..tasks import DEFAULT_PLATFORM, SKILLS, TaskSetting, get_setting
 from .evaluator import SkillEvaluator
 from .markers import build_marker, place_marker
 from .starts import PARKING_DEPTH_M, SUPPORT_KINDS, EpisodeStarts
-
-RENDER_EYE_CANDIDATES = 12
 
 
 @dataclass
@@ -246,26 +244,9 @@ class AeroSkillEnv(EpisodeStarts, AerialEnv):
 
     def aim_render_camera(self, env_idx: torch.Tensor) -> None:
         """Put the third-person camera 1.6-2.2 m from the drone, above it, in free space, looking at it."""
-        m = len(env_idx)
         target = self.agent.airframe_state().position[env_idx] + torch.tensor([0.0, 0.0, -0.2], device=self.device)
-        angles = torch.linspace(0, 2 * math.pi, RENDER_EYE_CANDIDATES + 1, device=self.device)[:-1]
-        best_eye = target + torch.tensor([-1.6, 0.0, 0.9], device=self.device)
-        best_score = torch.full((m,), -1e9, device=self.device)
-        boxes = self.obstacle_boxes(env_idx)
-        lo, hi = self.workspace_lo[env_idx], self.workspace_hi[env_idx]
-        for dist in (2.2, 1.6, 1.1):
-            eye = target[:, None] + torch.stack(
-                [dist * torch.cos(angles), dist * torch.sin(angles), torch.full_like(angles, 0.9)], -1
-            )[None]
-            eye[..., 2] = torch.minimum(eye[..., 2], hi[:, None, 2] - 0.15)
-            clearance = point_box_distance(eye, boxes).min(-1).values
-            inside = ((eye > lo[:, None] + 0.05) & (eye < hi[:, None] - 0.05)).all(-1)
-            score = torch.where(inside & (clearance > 0.1), clearance + dist, torch.full_like(clearance, -1e9))
-            k = score.argmax(-1)
-            top = score[torch.arange(m), k]
-            better = top > best_score
-            best_eye = torch.where(better[:, None], eye[torch.arange(m), k], best_eye)
-            best_score = torch.maximum(best_score, top)
+        best_eye = free_view_point(target, self.obstacle_boxes(env_idx), self.workspace_lo[env_idx],
+                                   self.workspace_hi[env_idx])
         poses = [sapien_utils.look_at(e.tolist(), t.tolist()) for e, t in zip(best_eye.cpu(), target.cpu())]
         raw = torch.cat([p.raw_pose for p in poses], 0).to(self.device)
         self.camera_rig.set_pose(Pose.create(raw))
