@@ -53,10 +53,6 @@ class LookFirst:
     def phase(self) -> torch.Tensor:
         return self.expert.phase  # looking counts as the approach's start (PickPhase.APPROACH)
 
-    @property
-    def planned(self):
-        return getattr(self.expert, "planned", None)
-
     def reset(self, env_idx: torch.Tensor) -> None:
         self.expert.reset(env_idx)
         self.looking[env_idx] = True
