@@ -39,7 +39,8 @@ def add_generate(sub) -> None:
                         "0.05); the dataset records the policy's own actions (docs/datasets.md)")
     p.add_argument("--look-first", action="store_true",
                    help="Pick: the expert first turns on the spot until the object is straight ahead, so every move "
-                        "it demonstrates is visible in the cameras (data for camera policies; docs/datasets.md)")
+                        "it demonstrates is visible in the cameras (data for camera policies; docs/datasets.md); "
+                        "with --label-with expert, the labelling expert looks first")
     add_condition_option(p)
     p.add_argument("--part-size", type=int, default=8, help="episodes per crash-safe part")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads of this process (1: each core runs "

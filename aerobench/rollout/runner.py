@@ -62,7 +62,8 @@ class RolloutSpec:
     rendering: str = DEFAULT_RENDERING  # "rasterized" or "ray-traced" (cameras through SAPIEN's ray tracer; a GPU)
     keep_signals: tuple[str, ...] = ()  # env info signals kept per step in `EpisodeData.signals` (diagnostic benches)
     # the expert of a Pick first turns on the spot to face its object (`expert.look`): what it demonstrates is then
-    # visible in the cameras at every step (demonstrations for camera policies)
+    # visible in the cameras at every step (demonstrations for camera policies); with `labeler` it is the labelling
+    # expert that looks first (DAgger on a policy cloned from look-first demonstrations)
     look_first: bool = False
     action_noise: float = 0.0  # DART: executed flight commands get N(0, sigma^2); the recorded action stays clean
     # named evaluation conditions the envs run under (`envs.conditions`; none: today's physics); the starts are the
@@ -130,8 +131,9 @@ class RolloutSpec:
                                  "and its --checkpoint (e.g. --policy bc --checkpoint RUN/checkpoint)")
             if self.chained:
                 raise ValueError("--label-with labels single-skill or chain rollouts, not the chained protocol's")
-        if self.look_first and (self.policy != "expert" or self.chained or self.labeler):
-            raise ValueError("--look-first changes how the expert flies a Pick: use it with --policy expert alone")
+        if self.look_first and (self.chained or (self.policy != "expert" and self.labeler != "expert")):
+            raise ValueError("--look-first changes how the expert flies or labels a Pick: use it with --policy expert "
+                             "or with --label-with expert")
         if self.look_first and self.skills != ("pick",):
             raise ValueError(f"--look-first turns to a Pick's object: give --skills pick, not {','.join(self.skills)}")
         if self.blind and self.record_cameras:
@@ -308,7 +310,7 @@ class RolloutRunner:
                                   device=spec.policy_server.device)
         else:
             policy = make_policy(spec.policy, base, checkpoint=checkpoint,
-                                 **({"look_first": True} if spec.look_first else {}))
+                                 **({"look_first": True} if spec.look_first and not spec.labeler else {}))
         return RealtimePolicy(policy, base, spec.realtime) if spec.realtime is not None else policy
 
     def _run_batch(self, skill: str, plans: list[EpisodePlan]) -> list[EpisodeData]:
@@ -327,7 +329,8 @@ class RolloutRunner:
         else:
             checkpoint = checkpoint_for(self.spec.checkpoints, skill)  # one, or one per skill
             policy, monitor = self._policy(base, checkpoint), None
-        labeler = make_policy(self.spec.labeler, base) if self.spec.labeler else None
+        labeler = (make_policy(self.spec.labeler, base, **({"look_first": True} if self.spec.look_first else {}))
+                   if self.spec.labeler else None)
         policy.reset(torch.arange(n, device=base.device))
         if labeler is not None:
             labeler.reset(torch.arange(n, device=base.device))

@@ -62,7 +62,7 @@ def test_a_start_facing_away_turns_in_place_until_the_object_is_ahead_then_picks
 
 @pytest.mark.parametrize("overrides, message", [
     ({"skills": ("place",)}, "give --skills pick"),
-    ({"policy": "bc", "checkpoint": "x"}, "--policy expert alone"),
+    ({"policy": "bc", "checkpoint": "x"}, "--label-with expert"),
 ])
 def test_look_first_is_refused_where_it_means_nothing(overrides, message):
     kwargs = dict(setting="PrepareGroceries", skills=("pick",), episodes=1, look_first=True) | overrides
@@ -74,3 +74,10 @@ def test_a_look_first_run_says_so_in_its_identity():
     spec = RolloutSpec(setting="PrepareGroceries", skills=("pick",), episodes=1, look_first=True)
     assert spec.as_dict()["look_first"] is True
     assert "look_first" not in RolloutSpec(setting="PrepareGroceries", skills=("pick",), episodes=1).as_dict()
+
+
+def test_look_first_labels_a_learned_policys_flight():
+    # DAgger on a policy cloned from look-first demonstrations: the labelling expert looks first, the policy flies
+    spec = RolloutSpec(setting="PrepareGroceries", skills=("pick",), episodes=1, look_first=True, policy="bc",
+                       checkpoint="x", labeler="expert")
+    assert spec.as_dict()["look_first"] is True and spec.as_dict()["labeler"] == "expert"

@@ -443,6 +443,18 @@ def test_dagger_the_bc_flies_and_the_expert_labels_every_state_it_visits(trained
         RolloutSpec(**spec, policy="bc", checkpoint="x", labeler="random")
 
 
+def test_dagger_with_a_look_first_labeller(trained, monkeypatch):
+    # the labelling expert turns to the object first (`expert.look`); the BC flies exactly as it would alone
+    bc, bc_flown = _flown_and_recorded(monkeypatch, policy="bc", checkpoint=str(trained))
+    dagger, dagger_flown = _flown_and_recorded(monkeypatch, policy="bc", checkpoint=str(trained), labeler="expert",
+                                               look_first=True)
+    looking, _ = _flown_and_recorded(monkeypatch, policy="expert", look_first=True)
+    plain, _ = _flown_and_recorded(monkeypatch, policy="expert")
+    assert np.array_equal(dagger_flown, bc_flown)
+    assert np.allclose(dagger.frames["action"][0], looking.frames["action"][0])  # the look-first expert's command
+    assert not np.allclose(looking.frames["action"][0], plain.frames["action"][0])  # which is not the plain one's
+
+
 def test_dagger_from_the_command_line_joined_with_the_demonstrations_and_trained_on(state_dataset, trained, tmp_path,
                                                                                       capsys):
     """The CLI's commands in this process (each subprocess paid 10-15 s of imports): the other CLI tests run them as
