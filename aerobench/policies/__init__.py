@@ -8,4 +8,7 @@ with `aerobench pi-init`).
 
 from .registry import POLICIES, Policy, make_policy, policy_needs_images, register_policy
 
+# the policies register themselves by name on import (after the registry they register in)
+from . import builtin, learned, lerobot_policies  # noqa: E402,F401  isort: skip
+
 __all__ = ["POLICIES", "Policy", "make_policy", "policy_needs_images", "register_policy"]

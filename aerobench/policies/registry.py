@@ -1,4 +1,8 @@
-"""The policy registry: a name -> factory map filled by `@register_policy` at import time."""
+"""The policy registry: a name -> factory map filled by `@register_policy` at import time.
+
+The package (`aerobench.policies`) imports the modules that register (builtin, learned, lerobot_policies) once this
+module is loaded, so the registry is full wherever it is used and never imports what it registers (LeRobot's shape).
+"""
 
 from __future__ import annotations
 
@@ -30,8 +34,6 @@ def register_policy(name: str):
 
 def make_policy(name: str, env, checkpoint: str | None = None, **kwargs) -> Policy:
     """Build policy `name` for `env` (the unwrapped aerobench env); unknown names list the valid ones."""
-    from . import builtin, learned, lerobot_policies  # noqa: F401  (register expert, random, bc, ppo, LeRobot's)
-
     if name not in POLICIES:
         raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
     return POLICIES[name](env, checkpoint=checkpoint, **kwargs)
@@ -39,8 +41,6 @@ def make_policy(name: str, env, checkpoint: str | None = None, **kwargs) -> Poli
 
 def policy_needs_images(name: str, checkpoint: str | None = None) -> bool:
     """Whether policy `name` reads camera images (the runner then renders the three RGB-D cameras)."""
-    from . import builtin, learned, lerobot_policies  # noqa: F401
-
     if name not in POLICIES:
         raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
     needs = getattr(POLICIES[name], "needs_images", None)
@@ -50,7 +50,6 @@ def policy_needs_images(name: str, checkpoint: str | None = None) -> bool:
 def policy_training_starts(name: str, checkpoint: str | None):
     """The episode starts policy `name`'s checkpoint trained on (`provenance.TrainingStarts`; empty for policies
     that did not train on episodes, e.g. expert and random)."""
-    from . import builtin, learned, lerobot_policies  # noqa: F401
     from .provenance import TrainingStarts
 
     factory = POLICIES.get(name)
@@ -62,7 +61,6 @@ def policy_input_tier(name: str, checkpoints: list[str | None]) -> str:
     """The input tier (`aerobench.tiers`) of policy `name` with these checkpoints (one per skill stage): the widest
     of theirs (a row whose Pick is `vision` and whose Place is `privileged` is a `privileged` row)."""
     from .. import tiers
-    from . import builtin, learned, lerobot_policies  # noqa: F401
 
     if name not in POLICIES:
         raise ValueError(f"unknown policy {name!r}; valid policies: {', '.join(sorted(POLICIES))}")
@@ -72,7 +70,6 @@ def policy_input_tier(name: str, checkpoints: list[str | None]) -> str:
 def check_policy_tier(name: str, checkpoints: list[str | None], tier: str) -> None:
     """Refuse (one line) to evaluate a policy that reads outside `tier` (`aerobench eval --inputs TIER`)."""
     from .. import tiers
-    from . import builtin, learned, lerobot_policies  # noqa: F401
 
     tiers.get_tier(tier)
     for checkpoint in checkpoints or [None]:
