@@ -209,18 +209,24 @@ def add_compare(sub) -> None:
     p.add_argument("b", help="eval folder or results file of policy B (same setting, skills, objects and --seed)")
     p.add_argument("--difference", type=float, default=0.10,
                    help="success-rate difference the power statement is about (default: 0.10, ten points)")
+    p.add_argument("--diagnostic", default=None,
+                   help="compare a record diagnostic start by start instead of success (e.g. "
+                        "min_tcp_to_grasp_point_m): medians, A lower on k of n, Wilcoxon signed-rank p; eval folders")
     p.add_argument("--json", default=None, help="also write the comparison to this JSON file")
     p.set_defaults(func=_run_compare)
 
 
 def _run_compare(args) -> int:
-    from ..eval.compare import compare, format_comparison
+    from ..eval.compare import compare, compare_diagnostic, format_comparison, format_diagnostic
 
     try:
-        result = compare(args.a, args.b, difference=args.difference)
+        if args.diagnostic:
+            result = compare_diagnostic(args.a, args.b, args.diagnostic)
+        else:
+            result = compare(args.a, args.b, difference=args.difference)
     except ValueError as e:
         raise UserError(str(e)) from None
-    print(format_comparison(result))
+    print(format_diagnostic(result) if args.diagnostic else format_comparison(result))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
     return 0

@@ -6,6 +6,10 @@ only B / neither), the exact McNemar p-value, a 95% interval for rate(A) - rate(
 data) and a verdict in words; across the cells, Holm's correction of their p-values says which cells differ. Starts
 that either run rejected at initialization (outcome I) are left out of the pairs. Results whose starts differ are
 refused with one line.
+
+`--diagnostic NAME` pairs a per-episode record diagnostic instead (e.g. `min_tcp_to_grasp_point_m`: how near the jaws
+came to the grasp point when no episode succeeded): medians, on how many starts A's value is lower, and the
+two-sided Wilcoxon signed-rank test of the paired differences (scipy's: exact for small n without ties).
 """
 
 from __future__ import annotations
@@ -57,6 +61,56 @@ def run_from_results(file: Path, results: dict) -> Run:
         for r in (row for f in records for row in read_records(f)):
             episodes[int(r["episode_index"])] = (r["seed"], r["skill"], r["object"], r["outcome"])
     return Run(file, results, episodes)
+
+
+def _diagnostics(run: Run, name: str) -> dict[int, float]:
+    """`{episode index: value}` of record diagnostic `name` in the records beside `run`'s results (None left out)."""
+    records = [run.path.parent / r for r in str(run.results["provenance"].get("records") or "").split(",") if r]
+    if not records or not all(r.is_file() for r in records):
+        raise ValueError(f"--diagnostic reads the episode records beside {run.path}: pass its eval folder")
+    rows = [row for f in records for row in read_records(f)]
+    known = {k for row in rows for k in (row.get("diagnostics") or {})}
+    if name not in known:
+        raise ValueError(f"no record diagnostic {name!r} in {run.path.parent}; known: {', '.join(sorted(known))}")
+    return {int(r["episode_index"]): float(r["diagnostics"][name]) for r in rows
+            if r["outcome"] != "I" and (r.get("diagnostics") or {}).get(name) is not None}
+
+
+def compare_diagnostic(a: str | Path | Run, b: str | Path | Run, name: str) -> dict:
+    """A record diagnostic of two evals on the same starts, start by start: medians and ranges, on how many starts
+    A is lower / higher, and the two-sided Wilcoxon signed-rank p-value of the differences."""
+    import statistics
+
+    from scipy.stats import wilcoxon
+
+    a = a if isinstance(a, Run) else load_run(a)
+    b = b if isinstance(b, Run) else load_run(b)
+    _check_same_starts(a, b)
+    va, vb = _diagnostics(a, name), _diagnostics(b, name)
+    keys = sorted(set(va) & set(vb))
+    if not keys:
+        raise ValueError(f"no start has {name!r} in both evals")
+    xa, xb = [va[k] for k in keys], [vb[k] for k in keys]
+    differ = any(x != y for x, y in zip(xa, xb))
+    p = float(wilcoxon(xa, xb).pvalue) if differ else 1.0
+
+    def spread(values: list[float]) -> dict:
+        return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+    return {"diagnostic": name, "n": len(keys), "a": {"label": a.label, "path": str(a.path), **spread(xa)},
+            "b": {"label": b.label, "path": str(b.path), **spread(xb)},
+            "a_lower": sum(x < y for x, y in zip(xa, xb)), "a_higher": sum(x > y for x, y in zip(xa, xb)),
+            "p_value": p, "test": "Wilcoxon signed-rank, two-sided (scipy.stats.wilcoxon)"}
+
+
+def format_diagnostic(cmp: Mapping) -> str:
+    a, b = cmp["a"], cmp["b"]
+    return "\n".join([
+        f"{cmp['diagnostic']}, {cmp['n']} paired starts",
+        f"A: {a['label']}  median {a['median']:.3g} ({a['min']:.3g} to {a['max']:.3g})  ({a['path']})",
+        f"B: {b['label']}  median {b['median']:.3g} ({b['min']:.3g} to {b['max']:.3g})  ({b['path']})",
+        f"A lower on {cmp['a_lower']} of {cmp['n']}, higher on {cmp['a_higher']}; p = {cmp['p_value']:.2g} "
+        f"({cmp['test']})"])
 
 
 def _check_same_starts(a: Run, b: Run) -> None:

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from aerobench.eval.compare import compare, format_comparison, load_run
+from aerobench.eval.compare import compare, compare_diagnostic, format_comparison, format_diagnostic, load_run
 from aerobench.eval.results import summarize, write_results
 from aerobench.eval.stats import mcnemar_sample_size, paired_difference_interval
 from tests.cli_here import aerobench_here
@@ -126,3 +126,28 @@ def test_compare_two_committed_results_prints_a_verdict():
     overall = next(line for line in r.stdout.splitlines() if line.startswith("all "))
     assert " 40 " in overall and ("underpowered" in overall or "no detectable difference" in overall
                                   or "better" in overall)
+
+
+def _eval_folder(folder: Path, name: str, distances: list[float | None]) -> Path:
+    """An eval folder whose records carry `min_tcp_to_grasp_point_m` (None: an episode rejected at initialization)."""
+    folder.mkdir()
+    rows = [_record(i, "I" if d is None else "F", name) | {"diagnostics": {"min_tcp_to_grasp_point_m": d}}
+            for i, d in enumerate(distances)]
+    (folder / "records.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    write_results(folder / "results.json", summarize(rows, {"seed": 4200, "records": "records.jsonl"}, label=name))
+    return folder
+
+
+def test_a_record_diagnostic_is_compared_start_by_start(tmp_path):
+    near = _eval_folder(tmp_path / "near", "near", [0.10, 0.20, 0.05, 0.30, 0.12, 0.08, 0.15, None])
+    far = _eval_folder(tmp_path / "far", "far", [0.40, 0.50, 0.45, 0.35, 0.60, 0.70, 0.55, 0.20])
+    cmp = compare_diagnostic(near, far, "min_tcp_to_grasp_point_m")
+    assert (cmp["n"], cmp["a_lower"], cmp["a_higher"]) == (7, 7, 0)  # the rejected start is left out
+    assert cmp["a"]["median"] == pytest.approx(0.12) and cmp["b"]["median"] == pytest.approx(0.50)
+    assert cmp["p_value"] == pytest.approx(2 / 2**7)  # exact: every difference the same sign, n = 7
+    assert "A lower on 7 of 7" in format_diagnostic(cmp)
+    assert compare_diagnostic(near, near, "min_tcp_to_grasp_point_m")["p_value"] == 1.0
+    with pytest.raises(ValueError, match="no record diagnostic 'speed'"):
+        compare_diagnostic(near, far, "speed")
+    r = aerobench_here("compare", str(near), str(far), "--diagnostic", "min_tcp_to_grasp_point_m")
+    assert r.returncode == 0 and "A lower on 7 of 7" in r.stdout, r.stderr
