@@ -47,6 +47,12 @@ def load_run(path: str | Path) -> Run:
     return run_from_results(file, load_results(file))
 
 
+def _records_beside(file: Path, results: dict) -> list[Path]:
+    """The episode records a results file names (`provenance.records`, beside it); empty if any is missing."""
+    records = [file.parent / r for r in str(results["provenance"].get("records") or "").split(",") if r]
+    return records if records and all(r.is_file() for r in records) else []
+
+
 def run_from_results(file: Path, results: dict) -> Run:
     """The run of a loaded results document (`file` locates the records of an older results file)."""
     episodes = {}
@@ -54,8 +60,8 @@ def run_from_results(file: Path, results: dict) -> Run:
         for index, seed, outcome in cell.get("episodes", ()):
             episodes[int(index)] = (seed, cell["skill"], cell["object"], outcome)
     if not episodes:  # results written before cells listed their episodes: read the records beside them
-        records = [file.parent / r for r in str(results["provenance"].get("records") or "").split(",") if r]
-        if not records or not all(r.is_file() for r in records):
+        records = _records_beside(file, results)
+        if not records:
             raise ValueError(f"{file} lists no per-episode outcomes and its records are not beside it: re-run "
                              f"`aerobench summarize` on its eval folder, or pass the eval folder")
         for r in (row for f in records for row in read_records(f)):
@@ -65,8 +71,8 @@ def run_from_results(file: Path, results: dict) -> Run:
 
 def _diagnostics(run: Run, name: str) -> dict[int, float]:
     """`{episode index: value}` of record diagnostic `name` in the records beside `run`'s results (None left out)."""
-    records = [run.path.parent / r for r in str(run.results["provenance"].get("records") or "").split(",") if r]
-    if not records or not all(r.is_file() for r in records):
+    records = _records_beside(run.path, run.results)
+    if not records:
         raise ValueError(f"--diagnostic reads the episode records beside {run.path}: pass its eval folder")
     rows = [row for f in records for row in read_records(f)]
     known = {k for row in rows for k in (row.get("diagnostics") or {})}
