@@ -14,6 +14,7 @@ two-sided Wilcoxon signed-rank test of the paired differences (scipy's: exact fo
 
 from __future__ import annotations
 
+import statistics
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,9 +86,7 @@ def _diagnostics(run: Run, name: str) -> dict[int, float]:
 def compare_diagnostic(a: str | Path | Run, b: str | Path | Run, name: str) -> dict:
     """A record diagnostic of two evals on the same starts, start by start: medians and ranges, on how many starts
     A is lower / higher, and the two-sided Wilcoxon signed-rank p-value of the differences."""
-    import statistics
-
-    from scipy.stats import wilcoxon
+    from scipy.stats import wilcoxon  # scipy on first use: `compare` alone does not need it
 
     a = a if isinstance(a, Run) else load_run(a)
     b = b if isinstance(b, Run) else load_run(b)
