@@ -121,8 +121,20 @@ class CameraEncoder(nn.Module):
         else:
             self.head = nn.Sequential(nn.Flatten(), nn.Linear(c_in * side * side, feature_dim), nn.ReLU())
 
-    def forward(self, images: torch.Tensor) -> torch.Tensor:
-        return self.head(self.conv(images))
+    def forward(self, images: torch.Tensor, film: torch.Tensor | None = None) -> torch.Tensor:
+        """`film` `(N, 2 * sum(channels))`: a scale and a shift per channel of each convolution (FiLM, Perez et al.
+        2018), applied before its ReLU, so the instruction decides which things the maps respond to."""
+        if film is None:
+            return self.head(self.conv(images))
+        x, start = images, 0
+        for layer in self.conv:
+            x = layer(x)
+            if isinstance(layer, nn.Conv2d):
+                c = layer.out_channels
+                gamma, beta = film[:, start:start + c], film[:, start + c:start + 2 * c]
+                x = x * (1.0 + gamma[:, :, None, None]) + beta[:, :, None, None]
+                start += 2 * c
+        return self.head(x)
 
 
 class Trunk(nn.Module):
@@ -150,6 +162,11 @@ class Trunk(nn.Module):
         if self.instruction_dim:
             self.words = nn.EmbeddingBag(BUCKETS, self.instruction_dim, mode="mean", padding_idx=0)
             in_dim += self.instruction_dim
+        self.film = None
+        if model.get("film", False):  # the instruction scales and shifts the camera CNN's channels (RT-1's FiLM)
+            self.film = nn.Linear(self.instruction_dim, 2 * sum(model["cnn_channels"]))
+            nn.init.zeros_(self.film.weight)  # starts as the unconditioned CNN
+            nn.init.zeros_(self.film.bias)
         self.mlp = mlp([in_dim, *model["hidden"], out_dim], out_gain)
         aux_dim = int(model.get("aux_dim", 0))
         # Training-time targets predicted from the same features (`aerobench train bc --aux-fields`); never an input.
@@ -162,15 +179,18 @@ class Trunk(nn.Module):
         """The features the MLP reads: the state, each camera's features and the instruction's embedding."""
         parts = [inputs["state"]]
         n = inputs["state"].shape[0]
+        words = self.words(inputs["instruction"]) if self.instruction_dim else None
+        film = self.film(words) if self.film is not None else None
         if self.cameras:
             shape = (n, IMAGE_CHANNELS, self.image_size, self.image_size)
             images = [inputs[c] if not self.blind else inputs["state"].new_zeros(shape) for c in self.cameras]
             if self.separate:
-                parts += [self.encoders[c](x) for c, x in zip(self.cameras, images)]
+                parts += [self.encoders[c](x, film) for c, x in zip(self.cameras, images)]
             else:  # one encoder pass for all cameras; each camera's features keep their slot
-                parts += list(self.encoder(torch.cat(images, 0)).split(n, 0))
-        if self.instruction_dim:
-            parts.append(self.words(inputs["instruction"]))
+                batch_film = None if film is None else film.repeat(len(self.cameras), 1)
+                parts += list(self.encoder(torch.cat(images, 0), batch_film).split(n, 0))
+        if words is not None:
+            parts.append(words)
         return torch.cat(parts, -1)
 
 
@@ -185,10 +205,11 @@ def make_critic(model: dict) -> Trunk:
 def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs: InputSpec,
                cameras: tuple[str, ...] = (), image_size: int = 64, cnn_channels: tuple[int, ...] = (16, 32, 32),
                feature_dim: int = 64, gripper: str = "binary", blind: bool = False, camera_encoder: str = "shared",
-               instruction_dim: int = 0, encoder_head: str = "flatten", aux_dim: int = 0) -> dict:
+               instruction_dim: int = 0, encoder_head: str = "flatten", aux_dim: int = 0, film: bool = False) -> dict:
     """The JSON description of the networks a checkpoint holds (enough to rebuild them). `state_dim` counts the
     selected input values of all history frames; `instruction_dim` > 0 embeds the instruction (`inputs.instruction`);
-    `aux_dim` > 0 adds a linear head for auxiliary training targets (not read when acting)."""
+    `aux_dim` > 0 adds a linear head for auxiliary training targets (not read when acting); `film` conditions the
+    camera CNN on the instruction's embedding."""
     unknown = [c for c in cameras if c not in CAMERAS]
     if unknown:
         raise ValueError(f"unknown cameras {unknown}; valid: {', '.join(CAMERAS)}")
@@ -204,10 +225,13 @@ def model_spec(state_dim: int, action_dim: int, hidden: tuple[int, ...], inputs:
         raise ValueError("a blind control blanks the cameras of a camera policy: give it cameras")
     if inputs.instruction != (instruction_dim > 0):
         raise ValueError("the instruction is read with an embedding: instruction_dim > 0 exactly when inputs read it")
+    if film and not (cameras and instruction_dim):
+        raise ValueError("--film conditions the camera CNN on the instruction: it needs --images and the instruction")
     return {"state_dim": state_dim, "action_dim": action_dim, "hidden": list(hidden), "cameras": list(cameras),
             "image_size": image_size, "cnn_channels": list(cnn_channels), "feature_dim": feature_dim,
             "inputs": inputs.as_dict(), "gripper": gripper, "blind": blind, "camera_encoder": camera_encoder,
-            "instruction_dim": instruction_dim, "encoder_head": encoder_head, "aux_dim": aux_dim}
+            "instruction_dim": instruction_dim, "encoder_head": encoder_head, "aux_dim": aux_dim,
+            "film": film}
 
 
 def model_features(model: dict) -> list[str]:

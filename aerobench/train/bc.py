@@ -131,6 +131,8 @@ class BCConfig:
     feature_dim: int = field(default=64, metadata={"help": "features per camera"})
     encoder_head: str = field(default="flatten", metadata={"help": "a camera CNN's head: flatten (a linear layer over "
                               "its maps) or keypoints (spatial softmax: where things are in the image)"})
+    film: bool = field(default=False, metadata={"help": "condition the camera CNN on the instruction (FiLM: a scale "
+                       "and shift per channel), so it can look for the object the instruction names"})
     cnn_channels: tuple[int, ...] = field(default=(16, 32, 32), metadata={"help": "channels of the camera CNN's "
                                           "stride-2 convolutions"})
     aux_fields: tuple[str, ...] = field(default=(), metadata={"help": "task state fields the network learns to "
@@ -218,7 +220,8 @@ class BCConfig:
                           self.image_size, tuple(self.cnn_channels), feature_dim=self.feature_dim, gripper=self.gripper,
                           blind=self.blind, camera_encoder=self.camera_encoder, encoder_head=self.encoder_head,
                           instruction_dim=INSTRUCTION_DIM if inputs.instruction else 0,
-                          aux_dim=sum(dict(task_state_fields(with_arm=True))[f] for f in self.aux_fields))
+                          aux_dim=sum(dict(task_state_fields(with_arm=True))[f] for f in self.aux_fields),
+                          film=self.film)
 
 
 # ── demonstrations ────────────────────────────────────────────────────────────────────────────────────────────────

@@ -173,3 +173,27 @@ def test_auxiliary_targets_train_a_head_the_policy_never_reads(camera_dataset, t
     assert len(rmse) == 3 and all(v > 0 for v in rmse)  # metres: the goal's offset as the inputs tell it
     with pytest.raises(ValueError, match="--aux-fields must name task state fields"):
         BCConfig(dataset="d", out="o", inputs="vision", images=True, aux_fields=("goal",))
+
+
+def test_film_lets_the_instruction_change_what_the_camera_cnn_sees(camera_dataset, tmp_path):
+    """`--film`: the instruction scales and shifts each convolution's channels; at initialisation it is the plain CNN
+    (zero FiLM weights), and once the FiLM layer moves, two instructions give the same image different features."""
+    from aerobench.policies.learned import CameraEncoder, load_actor
+
+    ckpt = _vision(camera_dataset, tmp_path / "film", film=True, encoder_head="keypoints")
+    config = json.loads((ckpt / "config.json").read_text())
+    assert config["model"]["film"] is True and config["inputs_tier"] == "vision"
+    actor = load_actor(ckpt)[1]
+    assert actor.film.out_features == 2 * sum(config["model"]["cnn_channels"])
+
+    torch.manual_seed(0)
+    encoder = CameraEncoder(32, (8, 8), 16)
+    images = torch.rand(2, 4, 32, 32)
+    plain = encoder(images)
+    assert torch.equal(encoder(images, torch.zeros(2, 32)), plain)  # zero FiLM: the unconditioned CNN
+    film = torch.zeros(2, 32)
+    film[1, :8] = 1.0  # the second sample doubles the first convolution's channels
+    conditioned = encoder(images, film)
+    assert torch.equal(conditioned[0], plain[0]) and not torch.allclose(conditioned[1], plain[1])
+    with pytest.raises(ValueError, match="--film conditions the camera CNN on the instruction"):
+        BCConfig(dataset="d", out="o", inputs="vision", film=True)  # no --images: no CNN to condition
