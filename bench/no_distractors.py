@@ -32,6 +32,11 @@ DIAGNOSTIC = "num_distractors=0 (bench/no_distractors.py): not the setting's pro
 
 
 def run(argv: list[str]) -> int:
+    workers = argv[argv.index("--workers") + 1] if "--workers" in argv[:-1] else "1"
+    workers = next((a.split("=", 1)[1] for a in argv if a.startswith("--workers=")), workers)
+    if workers != "1" or "--ray" in argv:  # worker processes import the specs afresh: they would keep the distractors
+        print("no_distractors.py: runs in one process; drop --workers / --ray", file=sys.stderr)
+        return 2
     for env_id in SKILL_ENV_IDS.values():
         gym.spec(env_id).kwargs["num_distractors"] = 0
     code = main(["eval", *argv])

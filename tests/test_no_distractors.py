@@ -28,3 +28,4 @@ def test_a_diagnostic_run_has_no_distractors_and_says_so(tmp_path, monkeypatch):
     provenance = json.loads((out / "results.json").read_text())["provenance"]
     assert provenance["diagnostic"].startswith("num_distractors=0")
     assert provenance["command"].startswith("python bench/no_distractors.py --policy expert")
+    assert module.run(["--policy", "expert", "--workers", "2", "--out", str(tmp_path / "w")]) == 2  # would not hold
