@@ -118,16 +118,16 @@ class ChainedPolicy:
 class ChainMonitor:
     """Per-env stage step counts and the transport grasp-hold check, updated after every control step."""
 
-    def __init__(self, skills: Sequence[str], num_envs: int):
+    def __init__(self, skills: Sequence[str], num_envs: int, device: torch.device | str = "cpu"):
         self.skills = list(skills)
-        self.limits = torch.tensor([STAGE_MAX_STEPS[s] for s in self.skills])
-        self.is_transport = torch.tensor([s == "nav" for s in self.skills])
-        self.stage = torch.zeros(num_envs, dtype=torch.long)
-        self.stage_steps = torch.zeros(num_envs, dtype=torch.long)
-        self.violations = torch.zeros(num_envs, dtype=torch.long)
+        self.limits = torch.tensor([STAGE_MAX_STEPS[s] for s in self.skills], device=device)
+        self.is_transport = torch.tensor([s == "nav" for s in self.skills], device=device)
+        self.stage = torch.zeros(num_envs, dtype=torch.long, device=device)
+        self.stage_steps = torch.zeros(num_envs, dtype=torch.long, device=device)
+        self.violations = torch.zeros(num_envs, dtype=torch.long, device=device)
 
     def update(self, info: dict) -> tuple[torch.Tensor, torch.Tensor]:
-        """(over_budget, grasp_lost) `(N,)` bools after a step; `info` holds the step's signals on the CPU."""
+        """(over_budget, grasp_lost) `(N,)` bools after a step; `info` holds the step's signals on the env's device."""
         acting = self.stage
         self.stage_steps += 1
         stage_now = info["subtask_index"].long().clamp(max=len(self.skills) - 1)

@@ -27,7 +27,8 @@ from ..envs.rendering import DEFAULT_RENDERING, check_rendering
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
 from ..policies.remote import PolicyServerSpec
-from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, mark_grasp_lost, split_checkpoints
+from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, split_checkpoints
+from .batch import BatchStatus, StepBuffer, per_env_signals
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 from .noise import ActionNoise, check_action_noise
 from .realtime import RealtimePolicy, RealtimeSpec
@@ -325,63 +326,52 @@ class RolloutRunner:
         obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options=options)
         if self.spec.chained:
             policy = ChainedPolicy(base, self.spec.policy, self.spec.checkpoints)
-            monitor = ChainMonitor([ev.skill for ev in base.evaluators], n)
+            monitor = ChainMonitor([ev.skill for ev in base.evaluators], n, device=base.device)
         else:
             checkpoint = checkpoint_for(self.spec.checkpoints, skill)  # one, or one per skill
             policy, monitor = self._policy(base, checkpoint), None
         labeler = (make_policy(self.spec.labeler, base, **({"look_first": True} if self.spec.look_first else {}))
                    if self.spec.labeler else None)
-        policy.reset(torch.arange(n, device=base.device))
+        device = base.device
+        policy.reset(torch.arange(n, device=device))
         if labeler is not None:
-            labeler.reset(torch.arange(n, device=base.device))
+            labeler.reset(torch.arange(n, device=device))
         max_steps = episode_limit(env)
         evaluators = [ev.skill for ev in base.evaluators]
-        active = torch.ones(n, dtype=torch.bool)
-        active[len(plans):] = False
-        init_failed = info["init_failed"].cpu().clone()
+        # the batch's bookkeeping stays on the env's device: a step reads two booleans to the host (whether any env
+        # still runs, whether the action is finite), not every signal of every env
+        init_failed = info["init_failed"].clone()
         for actor in (policy, labeler):
             if hasattr(actor, "infeasible"):  # the expert's planner rejects starts it has no route from
-                init_failed |= actor.infeasible().cpu()
-        active &= ~init_failed
-        steps = torch.zeros(n, dtype=torch.long)
-        truncated_at = torch.zeros(n, dtype=torch.bool)
-        frames: list[dict] = []
-        signals: list[dict] = []
+                init_failed |= actor.infeasible().to(device)
+        status = BatchStatus((torch.arange(n, device=device) < len(plans)) & ~init_failed, monitor)
+        signals, frames = StepBuffer(max_steps), StepBuffer(max_steps)
+        images: list[dict[str, np.ndarray]] = []  # rendered frames go to the host as they come (`rollout.batch`)
         tasks = [base.get_instruction(i) for i in range(n)]
         third_person = any(p.index < self.spec.third_person_episodes for p in plans)
         perturb = ActionNoise(self.spec.action_noise, seed=seeds[0])
         for _ in range(max_steps):
-            if not active.any():
+            if not status.active.any():
                 break
             if self.spec.blind:
                 obs = blank_cameras(obs, base)
             action = policy.act(obs)
             if not torch.isfinite(action).all():
                 raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")
-            if labeler is None:
-                frame = self._frame(obs, action, base, policy, third_person)  # records the policy's own action
-            else:  # the expert acts on every step (its phases follow the flight) but only its label is kept
-                frame = self._frame(obs, labeler.act(obs), base, labeler, third_person)
+            recorded = (action, policy) if labeler is None else (labeler.act(obs), labeler)
+            # the policy's own action, or (DAgger) the expert's label: it acts on every step, its phases follow the flight
+            frames.append(self._frame(obs, *recorded, base))
+            images.append(self._images(obs, base, third_person))
             obs, _, terminated, truncated, info = env.step(perturb(action))
-            frames.append(frame)
-            signals.append({k: v.detach().cpu() for k, v in info.items() if torch.is_tensor(v) and v.shape[:1] == (n,)})
-            live = active.clone()
-            steps += live.long()
-            ended = (terminated.cpu() | truncated.cpu()) & live
-            truncated_at |= truncated.cpu() & ~terminated.cpu() & live
-            if monitor is not None:  # the protocol's stage budgets and transport grasp-hold check
-                over_budget, grasp_lost = monitor.update(signals[-1])
-                grasp_lost &= live & ~ended
-                mark_grasp_lost(signals[-1], grasp_lost)
-                truncated_at |= over_budget & live & ~ended
-                ended |= (over_budget | grasp_lost) & live
-            active &= ~ended
-            for row in range(len(frames[-1]["_active"])):
-                frames[-1]["_active"][row] = bool(live[row])
-        truncated_at |= active  # still running when the budget ran out
+            step = per_env_signals(info, n)
+            status.advance(terminated, truncated, step)
+            signals.append(step)
+        status.out_of_time()
+        trace, recorded_frames = signals.to_host(), frames.to_host()
+        steps, truncated_at, init_failed = status.steps.tolist(), status.truncated.tolist(), init_failed.tolist()
         episodes = [
             self._episode(
-                plans[i], i, frames, signals, int(steps[i]), bool(truncated_at[i]), bool(init_failed[i]), tasks[i],
+                plans[i], i, recorded_frames, images, trace, steps[i], truncated_at[i], init_failed[i], tasks[i],
                 evaluators, base, env.spec.id,
             )
             for i in range(len(plans))
@@ -392,30 +382,34 @@ class RolloutRunner:
                 episode.signals.update(policy.trace(episode.record.steps))
         return episodes
 
-    def _frame(self, obs, action, base, policy, third_person: bool = False) -> dict:
-        n = base.num_envs
-        frame = {
-            "state": obs["agent"]["state"].detach().cpu().numpy().astype(np.float32),
-            "task_state": base.task_state().detach().cpu().numpy().astype(np.float32),
-            "action": action.detach().cpu().numpy().astype(np.float32),
-            "phase": policy.phase().cpu().numpy() if hasattr(policy, "phase") else np.full(n, -1),
-            "_active": [True] * n,
-        }
+    @staticmethod
+    def _frame(obs, action, policy, base) -> dict[str, torch.Tensor]:
+        """What a step records of the acting (or labelling) policy, as `(N, ...)` tensors on the env's device."""
+        phase = (policy.phase() if hasattr(policy, "phase")
+                 else torch.full((base.num_envs,), -1, dtype=torch.long, device=base.device))
+        return {"state": obs["agent"]["state"], "task_state": base.task_state(), "action": action,
+                "phase": phase.to(base.device)}
+
+    def _images(self, obs, base, third_person: bool) -> dict[str, np.ndarray]:
+        """The step's recorded camera frames, on the host."""
+        frame = {}
         if self.spec.record_cameras:
             for cam in CAMERAS:
                 frame[f"rgb/{cam}"] = obs["sensor_data"][cam]["rgb"].cpu().numpy()
                 frame[f"depth/{cam}"] = obs["sensor_data"][cam]["depth"][..., 0].cpu().numpy().clip(0).astype(np.uint16)
         elif third_person:  # a video episode of a state-only run: its onboard views are rendered for the video alone
-            images = base.get_sensor_images()
+            rendered = base.get_sensor_images()
             for cam in CAMERAS:
-                frame[f"rgb/{cam}"] = images[cam]["rgb"].cpu().numpy()
+                frame[f"rgb/{cam}"] = rendered[cam]["rgb"].cpu().numpy()
         if third_person:  # the env's human-render camera, aimed at the drone at reset (not an observation)
             frame[f"rgb/{THIRD_PERSON}"] = base.render_rgb_array().cpu().numpy()
         return frame
 
-    def _episode(self, plan, row, frames, signals, steps, truncated, init_failed, task, evaluators, base, env_id) -> EpisodeData:
+    def _episode(self, plan, row, frames, images, signals, steps, truncated, init_failed, task, evaluators, base,
+                 env_id) -> EpisodeData:
+        """Episode `row` of a finished batch: `frames` and `signals` are `(T, N, ...)` arrays, `images` one dict a step."""
         spec = self.spec
-        trace = {k: np.stack([s[k][row].numpy() for s in signals[:steps]]) for k in signals[0]} if steps else {}
+        trace = {k: v[:steps, row].copy() for k, v in signals.items()} if steps else {}
         segments = ()
         if init_failed or not spec.is_chain:
             outcome = categorize(evaluators[0], trace, truncated, init_failed=init_failed)
@@ -437,10 +431,10 @@ class RolloutRunner:
         )
         data = {}
         if steps:
-            for key in frames[0]:
-                if key.startswith("_"):
-                    continue
-                data[key] = np.stack([f[key][row] for f in frames[:steps]])
+            for key, value in frames.items():
+                data[key] = value[:steps, row].astype(np.float32) if key != "phase" else value[:steps, row]
+            for key in images[0]:
+                data[key] = np.stack([frame[key][row] for frame in images[:steps]])
             data["events"] = np.stack([trace.get(k, np.zeros(steps)).astype(np.float32) for k in EVENT_FLAGS], -1)
             stage = trace.get("subtask_index", np.zeros(steps)).astype(np.int64)
             # the env reports the stage after the step; the stage acting on step t is the one before it

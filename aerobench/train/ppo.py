@@ -215,8 +215,8 @@ def imitation_loss(out: torch.Tensor, teacher: torch.Tensor, binary: bool) -> to
 class RunningMeanStd:
     """Running state mean / variance (Welford over batches), for runs from scratch (CleanRL normalizes observations)."""
 
-    def __init__(self, dim: int):
-        self.mean, self.var, self.count = torch.zeros(dim), torch.ones(dim), 1e-4
+    def __init__(self, dim: int, device: torch.device | str = "cpu"):
+        self.mean, self.var, self.count = torch.zeros(dim, device=device), torch.ones(dim, device=device), 1e-4
 
     def update(self, x: torch.Tensor) -> None:
         mean, var, n = x.mean(0), x.var(0, unbiased=False), x.shape[0]
@@ -226,10 +226,11 @@ class RunningMeanStd:
         self.count = total
 
     def state(self) -> dict:
-        return {"mean": self.mean, "var": self.var, "count": self.count}
+        return {"mean": self.mean.cpu(), "var": self.var.cpu(), "count": self.count}
 
     def load(self, state: dict) -> None:
-        self.mean, self.var, self.count = state["mean"], state["var"], state["count"]
+        device = self.mean.device
+        self.mean, self.var, self.count = state["mean"].to(device), state["var"].to(device), state["count"]
 
 
 def linear_decay(step: int, steps: int, start: int = 0) -> float:
@@ -260,7 +261,7 @@ def gae(rewards: torch.Tensor, dones: torch.Tensor, values: torch.Tensor, next_v
         next_done: torch.Tensor, gamma: float, gae_lambda: float) -> tuple[torch.Tensor, torch.Tensor]:
     """Generalized advantage estimation over a `(T, N)` window: (advantages, returns)."""
     T, N = rewards.shape
-    advantages, last = torch.zeros((T, N)), torch.zeros(N)
+    advantages, last = torch.zeros((T, N), device=rewards.device), torch.zeros(N, device=rewards.device)
     for t in reversed(range(T)):
         next_nonterminal = 1.0 - (next_done if t == T - 1 else dones[t + 1])
         next_values = next_value if t == T - 1 else values[t + 1]
@@ -279,7 +280,7 @@ def ppo_update(config: PPOConfig, batch: dict, actor: nn.Module, critic: nn.Modu
     minibatch = config.batch_size // config.num_minibatches
     stats = {k: [] for k in ("policy_loss", "value_loss", "entropy", "old_approx_kl", "approx_kl", "clipfrac", "imitation")}
     for _ in range(config.update_epochs):
-        order = torch.randperm(n)
+        order = torch.randperm(n, device=batch["logprobs"].device)
         for start in range(0, n, minibatch):
             mb = order[start : start + minibatch]
             mb_inputs = _inputs_at(batch["inputs"], mb)
@@ -303,7 +304,7 @@ def ppo_update(config: PPOConfig, batch: dict, actor: nn.Module, critic: nn.Modu
                 v_loss = 0.5 * torch.max((new_value - target).pow(2), (clipped - target).pow(2)).mean()
             else:
                 v_loss = 0.5 * (new_value - target).pow(2).mean()
-            imitation = torch.zeros(())
+            imitation = torch.zeros((), device=pred.device)
             if bc_actor is not None and bc_coef > 0:
                 with torch.no_grad():
                     teacher = bc_actor(mb_inputs)
@@ -392,13 +393,17 @@ def _train_ppo(config: PPOConfig) -> Path:
         raise ValueError(f"--init-bc {config.init_bc} was trained for state {model['state_dim']} / action "
                          f"{model['action_dim']}; this env has {state_dim} / {action_dim} (same platform needed)")
     binary = model["gripper"] == "binary"
-    actor, critic = make_actor(model), make_critic(model)
+    # the networks act and learn where the envs run: physx_cuda's batch on its GPU (no per-step copy of the window to
+    # the host), physx_cpu on the CPU (rollout workers act with CPU copies)
+    device = env.device if workers is None else torch.device("cpu")
+    actor, critic = make_actor(model).to(device), make_critic(model).to(device)
     if bc_actor is not None:
+        bc_actor.to(device)
         actor.load_state_dict(bc_actor.state_dict())
         bc_actor.requires_grad_(False)
-    log_std = nn.Parameter(torch.full((action_dim - binary,), float(config.init_log_std)))
-    normalizer = Normalizer(stats)
-    obs_rms = RunningMeanStd(state_dim) if bc_actor is None else None  # a BC actor keeps the stats it learned with
+    log_std = nn.Parameter(torch.full((action_dim - binary,), float(config.init_log_std), device=device))
+    normalizer = Normalizer(stats).to(device)
+    obs_rms = RunningMeanStd(state_dim, device) if bc_actor is None else None  # a BC actor keeps its stats
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters(), log_std], lr=config.learning_rate, eps=1e-5)
     if train_state is not None:
         weights = load_weights(checkpoint)
@@ -407,10 +412,12 @@ def _train_ppo(config: PPOConfig) -> Path:
         with torch.no_grad():
             log_std.copy_(weights["log_std"])
         optimizer.load_state_dict(train_state["optimizer"])
-        normalizer = Normalizer(json.loads((checkpoint / "normalization.json").read_text()))
+        normalizer = Normalizer(json.loads((checkpoint / "normalization.json").read_text())).to(device)
         if obs_rms is not None:
             obs_rms.load(train_state["obs_rms"])
         torch.set_rng_state(train_state["torch_rng"])
+        if device.type == "cuda" and "cuda_rng" in train_state:  # actions are sampled with the GPU's generator there
+            torch.cuda.set_rng_state(train_state["cuda_rng"], device)
     meta = {"algorithm": "ppo", "model": model, "train": current, "platform": platform.name}
     if workers is None:  # the collector acts with the learner's own modules
         collector = Collector(env, first_obs, first_info, inputs, model, actor, critic, log_std, normalizer)
@@ -434,12 +441,13 @@ def _train_ppo(config: PPOConfig) -> Path:
         return own
 
     def save() -> Path:
-        weights = {**{f"actor.{k}": v for k, v in actor.state_dict().items()},
-                   **{f"critic.{k}": v for k, v in critic.state_dict().items()}, "log_std": log_std.detach()}
+        weights = {**{f"actor.{k}": v.cpu() for k, v in actor.state_dict().items()},
+                   **{f"critic.{k}": v.cpu() for k, v in critic.state_dict().items()}, "log_std": log_std.detach().cpu()}
         state = {"global_step": global_step, "iteration": iteration, "episodes": episodes_done,
                  "episodes_started": episodes_started, "optimizer": optimizer.state_dict(),
                  "torch_rng": torch.get_rng_state(), "obs_rms": obs_rms.state() if obs_rms else None,
-                 "lr_decay_from": lr_decay_from}
+                 "lr_decay_from": lr_decay_from,
+                 **({"cuda_rng": torch.cuda.get_rng_state(device)} if device.type == "cuda" else {})}
         return save_checkpoint(out, meta, weights, normalizer.as_dict(), state, starts())
 
     T, N = config.num_steps, config.num_envs

@@ -117,6 +117,7 @@ class SkillEnv:
         """Reset the envs `idx` (all of them on one env); returns the batch's observation and info."""
         if self.n == 1:
             return self.reset_all()
+        idx = idx.cpu()
         for _ in range(MAX_RESET_TRIES):  # a batched scene draws its rows' starts from its own generator
             obs, info = self.env.reset(options={"env_idx": idx.to(self.device)})
             self.started += len(idx)
@@ -204,12 +205,15 @@ class Collector:
 
         self.env, self.inputs, self.model = env, inputs, model
         self.actor, self.critic, self.log_std, self.normalizer = actor, critic, log_std, normalizer
-        self.observer = ActorObserver(model)
+        # the actor's inputs, the window's tensors and the episode sums live on the env's device, as the networks do
+        self.device = env.device
+        self.observer = ActorObserver(model, self.device)
         self.obs, self.info = obs, info
         n = env.n
-        self.next_done = torch.zeros(n)
-        self.prev_phi = potential(env.config.skill, self.info).cpu()
-        self.ep_return, self.ep_length = torch.zeros(n), torch.zeros(n, dtype=torch.long)
+        self.next_done = torch.zeros(n, device=self.device)
+        self.prev_phi = potential(env.config.skill, self.info)
+        self.ep_return = torch.zeros(n, device=self.device)
+        self.ep_length = torch.zeros(n, dtype=torch.long, device=self.device)
         self.ep_peak = self.prev_phi.clone().float()  # the episode's highest potential: how far it got
 
     def load_policy(self, policy: dict) -> None:
@@ -245,12 +249,11 @@ class Collector:
             _, dist, action, sent = sample_action(self.actor, x, self.log_std, self.normalizer, self.model["gripper"])
             sent = self.observer.to_env(sent, self.obs)
             self.obs, _, terminated, truncated, self.info = env.env.step(sent.to(device))
-            r, phi, _ = reward(skill, self.info, self.prev_phi.to(device), sent.to(device), kind=env.config.reward,
-                               gamma=gamma)
-            r, phi = r.cpu().float(), phi.cpu()
-            terminated, truncated = terminated.cpu().bool(), truncated.cpu().bool()
+            r, phi, _ = reward(skill, self.info, self.prev_phi, sent.to(device), kind=env.config.reward, gamma=gamma)
+            r = r.float()
+            terminated, truncated = terminated.bool(), truncated.bool()
             cut = truncated & ~terminated
-            if cut.any():  # a time limit is not an end of the task: bootstrap from the last state's value
+            if cut.any():  # host reads of a step: whether an episode was cut, whether one ended  # a time limit is not an end of the task: bootstrap from the last state's value
                 r = r + gamma * self._bootstrap_value() * cut
             rows.append({"inputs": x, "raw_state": raw["state"], "actions": action, "logprobs": dist.log_prob(action),
                          "rewards": r, "dones": self.next_done, "values": value})
@@ -271,7 +274,7 @@ class Collector:
                 self.ep_return[done], self.ep_length[done] = 0.0, 0
                 self.obs, self.info = env.reset_some(idx)
                 self.observer.reset(idx)
-                self.prev_phi = torch.where(done, potential(skill, self.info).cpu(), self.prev_phi)
+                self.prev_phi = torch.where(done, potential(skill, self.info), self.prev_phi)
                 self.ep_peak = torch.where(done, self.prev_phi.float(), self.ep_peak)
         stacked = {name: torch.stack([row[name] for row in rows]) for name in rows[0] if name != "inputs"}
         inputs = {k: torch.stack([row["inputs"][k] for row in rows]) for k in rows[0]["inputs"]}
