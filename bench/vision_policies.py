@@ -14,6 +14,11 @@ see"):
 Every step leaves its folder under --out and a marker in --out/done/; rerunning the same command continues where it
 stopped. Prints the table and writes `vision.json` (and a learning-curve PNG with --plot) under --out.
 
+A curve of evaluations already run (runs trained by hand with one recipe and `train bc --max-transitions`, scored
+on the same starts): `--curve-from FRACTION=RESULTS[,RESULTS]` once per point (several sets of starts pooled), with
+the runs' --steps, --setting, --skill and --eval-seed; it writes `curve.json` under --out (and the PNG with --plot)
+and trains nothing.
+
     python bench/vision_policies.py --dataset DATA --skill place --out outputs/vision/place [--seeds 0,1]
         [--steps 10000] [--per-object 20] [--eval-seed 4200] [--workers 2] [--fractions 0.25,0.5]
         [--curve-steps 2500,5000] [--privileged RESULTS] [--recipe "--batch-size 128"]
@@ -27,6 +32,7 @@ import os
 import shlex
 import shutil
 import sys
+import textwrap
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -148,6 +154,31 @@ def table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def curve_from(points: list[str], steps: int, setting: str, skill: str, eval_seed: int, out: Path) -> dict:
+    """The learning curve of evaluations already run: `FRACTION=RESULTS[,RESULTS...]` per point (results.json files or
+    their folders; several, e.g. two sets of held-out starts, are pooled episode by episode)."""
+    from aerobench.eval.results import over_all_cells
+
+    curve = []
+    for point in points:
+        fraction, _, paths = point.partition("=")
+        runs = []
+        for path in paths.split(","):
+            path = Path(path) / "results.json" if Path(path).is_dir() else Path(path)
+            if not path.is_file():
+                raise SystemExit(f"--curve-from {point}: no results at {path} (FRACTION=RESULTS[,RESULTS])")
+            runs.append((str(path), json.loads(path.read_text())))
+        cells = [c for _, r in runs for c in r["cells"]]
+        pooled = {**runs[0][1], "cells": cells, "mean_sr": over_all_cells({"cells": cells})["success_rate"]}
+        curve.append(row(runs[0][1]["label"], pooled, steps=steps, fraction=float(fraction),
+                         sources=[p for p, _ in runs]))
+    summary = {"budget": {"steps": steps, "setting": setting, "skill": skill, "eval_seed": eval_seed},
+               "rows": [], "comparisons": {}, "learning_curve": sorted(curve, key=lambda r: r["fraction"])}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "curve.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
 def plot(summary: dict, path: Path) -> None:
     import matplotlib
 
@@ -155,9 +186,11 @@ def plot(summary: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     curve = summary["learning_curve"]
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
-    for ax, key, xs in ((axes[0], "fraction", [r for r in curve if r["steps"] == summary["budget"]["steps"]]),
-                        (axes[1], "steps", [r for r in curve if r["fraction"] == 1.0])):
+    panels = (("fraction", [r for r in curve if r["steps"] == summary["budget"]["steps"]]),
+              ("steps", [r for r in curve if r["fraction"] == 1.0]))
+    panels = [(key, xs) for key, xs in panels if len({r[key] for r in xs}) > 1]  # a panel with one x says nothing
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.5 * len(panels), 3.4), squeeze=False)
+    for ax, (key, xs) in zip(axes[0], panels):
         xs = sorted(xs, key=lambda r: r[key])
         rate = [r["successes"] / r["n"] for r in xs]
         lo = [r["wilson95"][0] for r in xs]
@@ -167,8 +200,9 @@ def plot(summary: dict, path: Path) -> None:
         ax.set_xlabel("fraction of the demonstrations" if key == "fraction" else "gradient steps")
         ax.set_ylabel("held-out success")
         ax.set_ylim(0, 1)
-    fig.suptitle(f"vision-tier BC, {summary['budget']['setting']} {summary['budget']['skill']} "
-                 f"(seed {summary['budget']['eval_seed']}, Wilson 95%)")
+    title = (f"vision-tier BC, {summary['budget']['setting']} {summary['budget']['skill']} "
+             f"(seed {summary['budget']['eval_seed']}, Wilson 95%)")
+    fig.suptitle("\n".join(textwrap.wrap(title, 45 * len(panels))), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
 
@@ -199,6 +233,23 @@ def parse(argv: list[str] | None = None) -> tuple[Budget, Path, Path | None]:
 
 
 def main(argv: list[str] | None = None) -> dict:
+    argv = sys.argv[1:] if argv is None else argv
+    if "--curve-from" in argv:
+        p = argparse.ArgumentParser(description="a learning curve from evaluations already run")
+        p.add_argument("--curve-from", action="append", required=True, metavar="FRACTION=RESULTS")
+        p.add_argument("--steps", type=int, required=True)
+        p.add_argument("--setting", default="PrepareGroceries")
+        p.add_argument("--skill", default="place")
+        p.add_argument("--eval-seed", type=int, required=True)
+        p.add_argument("--out", type=Path, default=Path("outputs/bench/vision"))
+        p.add_argument("--plot", type=Path)
+        a = p.parse_args(argv)
+        summary = curve_from(a.curve_from, a.steps, a.setting, a.skill, a.eval_seed, a.out)
+        print(table(summary))
+        if a.plot:
+            plot(summary, a.plot)
+        print(f"wrote {a.out / 'curve.json'}")
+        return summary
     budget, out, png = parse(argv)
     summary = run(budget, out)
     print(table(summary))

@@ -56,3 +56,23 @@ def test_flags_parse_into_the_budget_and_bad_curves_are_refused():
     assert (str(out), str(png)) == ("o", "c.png")
     with pytest.raises(SystemExit):
         vp.parse(["--dataset", "d", "--steps", "100", "--curve-steps", "200"])
+
+
+def test_a_curve_from_evaluations_already_run_trains_nothing_and_plots_the_fractions(tmp_path):
+    points = []
+    for fraction, successes in ((0.25, 1), (0.5, 2), (1, 3)):
+        folder = tmp_path / f"eval_{fraction}"
+        folder.mkdir()
+        (folder / "results.json").write_text(json.dumps({**_results(successes, 4), "label": f"f{fraction}"}))
+        points += ["--curve-from", f"{fraction}={folder}"]
+    (tmp_path / "more.json").write_text(json.dumps({**_results(4, 4), "label": "f1, other starts"}))
+    points[-1] += f",{tmp_path / 'more.json'}"  # two sets of starts pooled into one point
+    summary = vp.main(points + ["--steps", "600", "--eval-seed", "7", "--out", str(tmp_path / "out"),
+                                "--plot", str(tmp_path / "curve.png")])
+    assert [(r["fraction"], r["successes"], r["n"]) for r in summary["learning_curve"]] == [(0.25, 1, 4), (0.5, 2, 4),
+                                                                                             (1.0, 7, 8)]
+    assert json.loads((tmp_path / "out" / "curve.json").read_text())["budget"]["eval_seed"] == 7
+    assert (tmp_path / "curve.png").stat().st_size > 0
+    with pytest.raises(SystemExit, match="no results"):
+        vp.main(["--curve-from", f"0.5={tmp_path / 'missing'}", "--steps", "600", "--eval-seed", "7",
+                 "--out", str(tmp_path / "out")])
