@@ -154,7 +154,7 @@ def table(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def curve_from(points: list[str], steps: int, setting: str, skill: str, eval_seed: int, out: Path) -> dict:
+def curve_from(points: list[str], steps: int, setting: str, skill: str, eval_seed: str, out: Path) -> dict:
     """The learning curve of evaluations already run: `FRACTION=RESULTS[,RESULTS...]` per point (results.json files or
     their folders; several, e.g. two sets of held-out starts, are pooled episode by episode)."""
     from aerobench.eval.results import over_all_cells
@@ -240,7 +240,7 @@ def main(argv: list[str] | None = None) -> dict:
         p.add_argument("--steps", type=int, required=True)
         p.add_argument("--setting", default="PrepareGroceries")
         p.add_argument("--skill", default="place")
-        p.add_argument("--eval-seed", type=int, required=True)
+        p.add_argument("--eval-seed", required=True, help="the held-out starts' --seed (several: comma-separated)")
         p.add_argument("--out", type=Path, default=Path("outputs/bench/vision"))
         p.add_argument("--plot", type=Path)
         a = p.parse_args(argv)

@@ -71,7 +71,7 @@ def test_a_curve_from_evaluations_already_run_trains_nothing_and_plots_the_fract
                                 "--plot", str(tmp_path / "curve.png")])
     assert [(r["fraction"], r["successes"], r["n"]) for r in summary["learning_curve"]] == [(0.25, 1, 4), (0.5, 2, 4),
                                                                                              (1.0, 7, 8)]
-    assert json.loads((tmp_path / "out" / "curve.json").read_text())["budget"]["eval_seed"] == 7
+    assert json.loads((tmp_path / "out" / "curve.json").read_text())["budget"]["eval_seed"] == "7"
     assert (tmp_path / "curve.png").stat().st_size > 0
     with pytest.raises(SystemExit, match="no results"):
         vp.main(["--curve-from", f"0.5={tmp_path / 'missing'}", "--steps", "600", "--eval-seed", "7",
