@@ -84,15 +84,15 @@ class PathRunner(RolloutRunner):
     `EpisodeData.frames` carries the proprio state but neither point, so the frame gains two arrays; everything
     else (seeding, outcome annotation, resume) is the runner's own."""
 
-    def _frame(self, obs, action, base, policy, third_person: bool = False) -> dict:
+    def _frame(self, obs, action, policy, base) -> dict:
         from aerobench.envs.control.so3 import quat_wxyz_to_matrix
 
-        frame = super()._frame(obs, action, base, policy, third_person)
+        frame = super()._frame(obs, action, policy, base)
         pose = base.target.pose
         rotation = quat_wxyz_to_matrix(pose.q)
         grasp = pose.p + (rotation @ base.target_grasp_point[..., None])[..., 0]  # as the env's StepContext
-        frame["tcp"] = base.agent.tcp_pose.p.detach().cpu().numpy().astype(np.float64)
-        frame["grasp_point"] = grasp.detach().cpu().numpy().astype(np.float64)
+        frame["tcp"] = base.agent.tcp_pose.p.detach().double()
+        frame["grasp_point"] = grasp.detach().double()
         return frame
 
 

@@ -382,13 +382,13 @@ class RolloutRunner:
                 episode.signals.update(policy.trace(episode.record.steps))
         return episodes
 
-    @staticmethod
-    def _frame(obs, action, policy, base) -> dict[str, torch.Tensor]:
-        """What a step records of the acting (or labelling) policy, as `(N, ...)` tensors on the env's device."""
+    def _frame(self, obs, action, policy, base) -> dict[str, torch.Tensor]:
+        """What a step records of the acting (or labelling) policy, as `(N, ...)` tensors on the env's device, in the
+        dtypes the episode's arrays have (a subclass may record more: `bench/diversity.py`)."""
         phase = (policy.phase() if hasattr(policy, "phase")
                  else torch.full((base.num_envs,), -1, dtype=torch.long, device=base.device))
-        return {"state": obs["agent"]["state"], "task_state": base.task_state(), "action": action,
-                "phase": phase.to(base.device)}
+        return {"state": obs["agent"]["state"].float(), "task_state": base.task_state().float(),
+                "action": action.float(), "phase": phase.to(base.device, torch.long)}
 
     def _images(self, obs, base, third_person: bool) -> dict[str, np.ndarray]:
         """The step's recorded camera frames, on the host."""
@@ -432,7 +432,7 @@ class RolloutRunner:
         data = {}
         if steps:
             for key, value in frames.items():
-                data[key] = value[:steps, row].astype(np.float32) if key != "phase" else value[:steps, row]
+                data[key] = value[:steps, row].copy()
             for key in images[0]:
                 data[key] = np.stack([frame[key][row] for frame in images[:steps]])
             data["events"] = np.stack([trace.get(k, np.zeros(steps)).astype(np.float32) for k in EVENT_FLAGS], -1)
@@ -441,7 +441,6 @@ class RolloutRunner:
             acting = np.concatenate([[0], stage[:-1]]) if len(stage) else stage
             data["stage"] = acting
             data["skill"] = np.minimum(acting, len(evaluators) - 1)  # into `skills` (the export maps it onto SKILLS)
-            data["phase"] = data["phase"].astype(np.int64)
         extra = {
             "env_id": env_id,
             "object_mass_kg": float(base.target_mass[row]) if base.target is not None else None,
