@@ -27,8 +27,8 @@ from ..envs.rendering import DEFAULT_RENDERING, check_rendering
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
 from ..policies.remote import PolicyServerSpec
-from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, split_checkpoints
 from .batch import BatchStatus, StepBuffer, per_env_signals
+from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 from .noise import ActionNoise, check_action_noise
 from .realtime import RealtimePolicy, RealtimeSpec

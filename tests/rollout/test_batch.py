@@ -5,7 +5,6 @@ import pytest
 import torch
 
 from aerobench.envs.checks import FailureCause
-
 from aerobench.rollout.batch import BatchStatus, StepBuffer, per_env_signals
 from aerobench.rollout.chained import STAGE_MAX_STEPS, ChainMonitor
 from tests.envs.host_sync import NoHostSync
