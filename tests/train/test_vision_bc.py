@@ -3,6 +3,7 @@ its blind control renders nothing, and a feature outside the tier is refused at 
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,8 @@ from aerobench.threads import torch_threads
 from aerobench.train.bc import BCConfig, train_bc
 from aerobench.train.camera_frames import camera_frames
 from tests.cli_here import aerobench_here
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))  # the release calibration bench
 
 pytestmark = pytest.mark.xdist_group("vision_bc")  # the module's camera dataset is made once, on one worker
 
@@ -197,3 +200,52 @@ def test_film_lets_the_instruction_change_what_the_camera_cnn_sees(camera_datase
     assert torch.equal(conditioned[0], plain[0]) and not torch.allclose(conditioned[1], plain[1])
     with pytest.raises(ValueError, match="--film conditions the camera CNN on the instruction"):
         BCConfig(dataset="d", out="o", inputs="vision", film=True)  # no --images: no CNN to condition
+
+
+def test_the_release_threshold_is_the_highest_that_lets_go_in_the_air_on_few_demonstrations():
+    from release_calibration import lowest_in_air, per_demonstration, release_summary, release_threshold
+
+    # two demonstrations: carried down onto the support, then the expert opens (label 0); frames after it are left out
+    p = torch.tensor([0.99, 0.97, 0.95, 0.80, 0.40, 0.30, 0.10, 0.98, 0.93, 0.96, 0.90, 0.85])
+    height = torch.tensor([0.30, 0.10, 0.01, 0.0, 0.0, 0.0, 0.0, 0.30, 0.05, 0.0, 0.0, 0.0])
+    progress = torch.tensor([0, 0, 0, 0.1, 0.2, 0.5, 0.6, 0, 0, 0.1, 0.2, 0.5])
+    label = torch.tensor([1, 1, 1, 1, 1, 0, 0, 1, 1, 1, 1, 0])
+    segment = torch.tensor([0] * 7 + [1] * 5)
+    demos = per_demonstration(p, progress, height, label, segment)
+    assert [len(d.p_close) for d in demos] == [6, 5] and [d.expert_release for d in demos] == [5, 4]
+    assert [lowest_in_air(d) for d in demos] == pytest.approx([0.97, 0.93])  # 0.95 is 1 cm up: a set-down, not a drop
+    assert release_threshold([0.97, 0.93], max_early=0.0) == pytest.approx(0.929)  # strictly below the lower minimum
+    assert release_threshold([0.97, 0.93], max_early=0.5) == pytest.approx(0.969)  # one of two may let go early
+    summary = release_summary(demos, 0.929)
+    assert summary["early_in_air"] == 0 and summary["released_on_support"] == 2 and summary["never"] == 0
+    assert summary["delay_steps_median"] == -1.5  # demo 0 opens at 0.80 two steps before the expert, demo 1 one before
+    high = release_summary(demos, 0.95)
+    assert high["early_in_air"] == 1 and high["open_height_m_max"] == pytest.approx(0.05)  # demo 1 drops from 5 cm
+    assert release_summary(demos, 0.35)["never"] == 1  # demo 1 never falls that low up to its release
+    with pytest.raises(ValueError, match="calibrate on a Place dataset"):
+        release_threshold([], 0.05)
+
+
+def test_a_calibrated_release_is_written_into_a_copy_of_the_checkpoint_and_acted_on(camera_dataset, tmp_path):
+    from release_calibration import calibrate_release
+
+    from aerobench.policies.learned import BCPolicy
+
+    ckpt = _vision(camera_dataset, tmp_path / "run")
+    summary = calibrate_release(str(ckpt), str(camera_dataset), max_early=0.0, out=str(tmp_path / "calibrated"),
+                                outcomes=("T",))
+    assert summary["demonstrations"] == 2 and summary["early_in_air"] == 0  # nothing let go in the air at 0 allowed
+    config = json.loads((tmp_path / "calibrated" / "config.json").read_text())
+    assert config["model"]["close_threshold"] == summary["threshold"]
+    assert config["model"]["release_calibration"]["max_early"] == 0.0
+    assert "close_threshold" not in json.loads((ckpt / "config.json").read_text())["model"]  # the original untouched
+
+    class Env:
+        device = torch.device("cpu")
+
+        class platform:
+            action_dim = config["model"]["action_dim"]
+
+    assert BCPolicy(Env(), str(tmp_path / "calibrated")).close_threshold == summary["threshold"]
+    with pytest.raises(ValueError, match="no checkpoint at"):
+        calibrate_release(str(tmp_path / "none"), str(camera_dataset))
