@@ -42,30 +42,31 @@ def _episode_lengths(root: Path) -> list[int]:
 
 
 def test_generate_on_ray_with_a_killed_worker_writes_the_episodes_of_one_process(tmp_path):
-    """Two Ray shards of two episodes each; one worker is killed once a part is committed. Ray retries its shard, which
-    resumes from the committed parts: every planned episode once, and the same records and frames as one process."""
+    """Two Ray shards of four episodes each; one worker is killed once a part is committed (with three episodes of its
+    shard still to run, so that it is still running on a fast machine). Ray retries its shard, which resumes from the
+    committed parts: every planned episode once, and the same records and frames as one process."""
     serial, on_ray = tmp_path / "serial", tmp_path / "ray"
-    r = aerobench_here(*NAV, "--episodes", "4", "--out", str(serial))  # one process: this one
+    r = aerobench_here(*NAV, "--episodes", "8", "--out", str(serial))  # one process: this one
     assert r.returncode == 0, r.stderr[-2000:]
-    proc = subprocess.Popen(CLI + NAV + ["--episodes", "4", "--out", str(on_ray), "--ray"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen(CLI + NAV + ["--episodes", "8", "--out", str(on_ray), "--ray"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=ENV)
     parts = on_ray / ".aerobench" / "parts"
     deadline = time.monotonic() + 600
     while time.monotonic() < deadline and not (parts.is_dir() and any(p.name.startswith("part-") for p in parts.iterdir())):
-        time.sleep(0.2)
+        time.sleep(0.05)
     workers = subprocess.run(["pgrep", "-f", "ray::_generate_shard"], capture_output=True, text=True).stdout.split()
     assert workers, "no Ray worker was running a generation shard"
-    os.kill(int(workers[0]), signal.SIGKILL)  # mid-run: each shard has two episodes, one part is committed
+    os.kill(int(workers[0]), signal.SIGKILL)  # mid-run: each shard has four episodes, one part is committed
     stdout, stderr = proc.communicate(timeout=900)
     assert proc.returncode == 0, stderr[-2000:]
-    assert "4 episodes in" in stdout and "merged" in stdout
+    assert "8 episodes in" in stdout and "merged" in stdout
     got, want = _records(on_ray), _records(serial)
-    assert sorted(x["episode_index"] for x in got) == [0, 1, 2, 3]  # every planned episode exactly once
-    assert sorted(x["shard"] for x in got) == [0, 0, 1, 1]  # two Ray shards ran them
+    assert sorted(x["episode_index"] for x in got) == list(range(8))  # every planned episode exactly once
+    assert sorted(x["shard"] for x in got) == [0] * 4 + [1] * 4  # two Ray shards ran them
     assert _without_location(got) == _without_location(want)  # ids, seeds, outcomes, modes, event times, diagnostics
     lengths = _episode_lengths(on_ray)
     assert lengths == _episode_lengths(serial)  # same episodes and frames, in plan order
-    assert len(lengths) == 4 and len(set(lengths)) > 1  # (distinct lengths: the order is really checked)
+    assert len(lengths) == 8 and len(set(lengths)) > 1  # (distinct lengths: the order is really checked)
 
 
 def test_eval_on_ray_gives_the_cells_of_one_process(tmp_path):
