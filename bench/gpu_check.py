@@ -1,7 +1,7 @@
 """The first GPU hour, prepared: checks and measures aerobench on a CUDA GPU in at most 10 minutes and writes its
 tables into docs/gpu.md (between its `gpu_check` markers).
 
-    python bench/gpu_check.py [--budget-s 570] [--only tests,starts,state,expert,cameras] [--eager]
+    python bench/gpu_check.py [--budget-s 570] [--only tests,starts,state,expert,runner,cameras] [--eager]
                               [--doc docs/gpu.md] [--json FILE] [--no-write]
 
 Jobs, in this order, each in its own process (a crash or a hang costs that job only; every job keeps its cap, the
@@ -14,6 +14,9 @@ run has a deadline, and what does not fit is reported as not run):
            GPU memory in use; a row predicted not to fit in the time left is skipped and says so
   expert   the privileged expert on AeroPick-v1 (TidyHouse), 64 batched envs, under PGS and under TGS
            (AEROBENCH_PHYSX_SOLVER, docs/physics.md): successes and which starts only one solver solves
+  runner   the rollout runner (what `aerobench eval` and `generate` run) with the expert on AeroPick-v1, 32 envs,
+           64 episodes: every episode its own scene (two reconfigured batches) against two episodes per scene (one
+           batch, each env reset alone between its episodes: `--episodes-per-scene 2`); episodes per minute
   cameras  as `state` with the three 128x128 RGB-D cameras (obs_mode="rgbd"), N = 1, 16, 64
 `starts` and `expert` run eager (`AEROBENCH_COMPILE=0`: the same numbers, no compile time); `state` and `cameras`
 run the compiled kernels users run unless `--eager`. On a machine without CUDA it prints one line and exits 0.
@@ -40,8 +43,8 @@ if str(ROOT) not in sys.path:  # a machine where aerobench is not installed runs
 
 NEEDS_GPU = "bench/gpu_check.py needs a CUDA GPU (physx_cuda); torch sees none on this machine, so nothing was checked"
 ROW = "GPU_CHECK_ROW "  # a worker's result lines on stdout start with this
-JOBS = ("tests", "starts", "state", "expert", "cameras")
-CAP_S = {"tests": 150, "starts": 75, "state": 160, "expert": 110, "cameras": 70}  # each job keeps this much
+JOBS = ("tests", "starts", "state", "expert", "runner", "cameras")
+CAP_S = {"tests": 140, "starts": 65, "state": 140, "expert": 95, "runner": 60, "cameras": 70}  # each job keeps this
 MIN_JOB_S = 20
 STATE_SIZES = (1, 16, 256, 1024)
 CAMERA_SIZES = (1, 16, 64)
@@ -49,6 +52,8 @@ THROUGHPUT_ENVS = (("AeroFly-v1", {}), ("AeroPick-v1", {"setting": "TidyHouse"})
 WARMUP_STEPS = 5
 EXPERT_ENVS = 64
 EXPERT_SEED = 31  # episode seeds EXPERT_SEED * SEED_STRIDE + i, objects in turn
+RUNNER_ENVS = 32
+RUNNER_SEED = 32
 GPU_TOLERANCE = 1e-4  # m, rad: GPU poses come back through the sub-scene offsets in float32
 FIXTURE = ROOT / "tests" / "envs" / "episode_starts.json"
 
@@ -254,12 +259,51 @@ def expert_row(backend: str, num_envs: int, deadline: float, max_steps: int | No
     return row
 
 
+class _Stop(Exception):
+    pass
+
+
+def runner_rows(backend: str, num_envs: int, deadline: float, per_scene: tuple[int, ...] = (1, 2),
+                max_steps: int | None = None) -> Iterator[dict]:
+    """The rollout runner with the expert on AeroPick-v1 (TidyHouse, state only), `2 * num_envs` episodes, once per
+    `per_scene` value: episodes, successes, seconds, episodes per minute (env build included: each run builds its
+    own)."""
+    from aerobench.rollout.episode import EpisodeList
+    from aerobench.rollout.runner import RolloutRunner, RolloutSpec
+
+    for g in per_scene:
+        row: dict = {"envs": num_envs, "episodes_per_scene": g, "episodes": 0, "successes": 0}
+        spec = RolloutSpec(setting="TidyHouse", skills=("pick",), episodes=2 * num_envs, num_envs=num_envs,
+                           seed=RUNNER_SEED, sim_backend=backend, record_cameras=False, episodes_per_scene=g,
+                           max_steps=max_steps)
+
+        def count(episode, progress, row=row):
+            row["episodes"], row["successes"] = progress.done, progress.successes
+            if time.time() > deadline:
+                raise _Stop
+
+        t0 = time.monotonic()
+        try:
+            RolloutRunner(spec, EpisodeList(), on_episode=count).run()
+        except _Stop:
+            row["stopped"] = True
+        except Exception as exc:  # noqa: BLE001 - the row says what failed, the other rows still run
+            row["error"] = _error(exc)
+        seconds = time.monotonic() - t0
+        row.update(seconds=round(seconds, 1), episodes_per_min=round(60 * row["episodes"] / max(seconds, 1e-9), 1))
+        yield row
+        if time.time() > deadline:
+            return
+
+
 def run_worker(args) -> int:
     if args.worker == "starts":
         rows = starts_rows(args.backend)
     elif args.worker == "throughput":
         sizes = [int(v) for v in args.sizes.split(",") if v]
         rows = throughput_rows(args.backend, args.obs, sizes, args.steps, args.deadline)
+    elif args.worker == "runner":
+        rows = runner_rows(args.backend, args.envs, args.deadline)
     else:
         rows = iter([expert_row(args.backend, args.envs, args.deadline)])
     for row in rows:
@@ -377,6 +421,17 @@ def render_expert(results: list[dict], context: dict) -> str:
     return "\n".join(lines)
 
 
+def render_runner(result: dict, context: dict) -> str:
+    lines = [_stamp(context, result["seconds"]), "",
+             "| envs | episodes per scene | episodes | successes | seconds | episodes / min | note |",
+             "| ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
+    for r in result["rows"]:
+        note = r.get("error") or ("stopped at the job's deadline" if r.get("stopped") else "")
+        lines.append(f"| {r['envs']} | {r['episodes_per_scene']} | {r['episodes']} | {r['successes']} | {r['seconds']} "
+                     f"| {r['episodes_per_min']} | {note} |")
+    return "\n".join(lines)
+
+
 def marker(job: str, end: bool = False) -> str:
     return f"<!-- {'/' if end else ''}gpu_check:{job} -->"
 
@@ -422,7 +477,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--state-sizes", default=",".join(map(str, STATE_SIZES)))
     parser.add_argument("--camera-sizes", default=",".join(map(str, CAMERA_SIZES)))
     # a job's own process (the driver starts these)
-    parser.add_argument("--worker", choices=("starts", "throughput", "expert"), help=argparse.SUPPRESS)
+    parser.add_argument("--worker", choices=("starts", "throughput", "expert", "runner"), help=argparse.SUPPRESS)
     parser.add_argument("--backend", default="physx_cuda", help=argparse.SUPPRESS)
     parser.add_argument("--obs", default="state", help=argparse.SUPPRESS)
     parser.add_argument("--sizes", default="", help=argparse.SUPPRESS)
@@ -463,6 +518,10 @@ def main(argv: list[str] | None = None) -> int:
         elif job == "starts":
             result = run_job([*me, "--worker", "starts"], timeout, job_env(compile_on=False))
             blocks[job], results = render_starts(result, context), [result]
+        elif job == "runner":
+            result = run_job([*me, "--worker", "runner", "--envs", str(RUNNER_ENVS), "--deadline", str(deadline)],
+                             timeout, job_env(compile_on=False))
+            blocks[job], results = render_runner(result, context), [result]
         elif job in ("state", "cameras"):
             obs, sizes = ("state", args.state_sizes) if job == "state" else ("rgbd", args.camera_sizes)
             steps = args.steps if job == "state" else max(args.steps // 5, 5)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..progress import progress_bar, ray_progress_bar
 from .common import Parser, UserError, add_ray_options, parse_csv, parse_shard
-from .evaluation import add_condition_option
+from .evaluation import add_condition_option, add_scene_sharing_option
 
 
 def add_generate(sub) -> None:
@@ -16,6 +16,7 @@ def add_generate(sub) -> None:
     p.add_argument("--episodes", type=int, required=True)
     p.add_argument("--objects", type=parse_csv, default=None, help="comma-separated objects (default: all of the setting's)")
     p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only; CPU: use --shard)")
+    add_scene_sharing_option(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--shard", type=parse_shard, default=(0, 1), help="i/k: this process runs the i-th of k contiguous blocks of the episodes")
     p.add_argument("--keep", choices=("success", "all"), default="success", help="which episodes enter the dataset")
@@ -64,7 +65,7 @@ def _run_generate(args) -> int:
             labeler=args.label_with, platform=args.platform,
             controller=args.controller, record_cameras=not args.no_cameras, sim_backend=args.sim_backend,
             rendering=args.render, action_noise=args.action_noise, condition=args.condition,
-            look_first=args.look_first,
+            look_first=args.look_first, episodes_per_scene=args.episodes_per_scene,
         )
         if spec.rendering == "ray-traced" and args.ray is None:
             from ..envs.rendering import require_ray_tracing

@@ -26,6 +26,7 @@ def add_eval(sub) -> None:
     p.add_argument("--objects", type=parse_csv, default=None, help="comma-separated objects (default: all of the setting's)")
     p.add_argument("--episodes-per-object", type=int, default=50)
     p.add_argument("--num-envs", type=int, default=1, help="parallel envs (physx_cuda only)")
+    add_scene_sharing_option(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the episode plan; for a learned policy, one its "
                    "training data was not generated with (held-out starts; results record any overlap)")
     p.add_argument("--video", type=int, default=0, help="write rollout videos of the first N episodes (renders cameras)")
@@ -50,6 +51,12 @@ def add_eval(sub) -> None:
     add_ray_options(p)
     add_realtime_options(p)
     p.set_defaults(func=_run_eval)
+
+
+def add_scene_sharing_option(p) -> None:
+    """`--episodes-per-scene G` (eval and generate): partial resets within a batch (`RolloutSpec.episodes_per_scene`)."""
+    p.add_argument("--episodes-per-scene", type=int, default=1, metavar="G",
+                   help="episodes that share one scene (layout, object, distractors), each from its own start: an env that finishes one is reset alone into the next, so a physx_cuda batch is not held up by its slowest episode (docs/gpu.md); 1: every episode its own scene, as the leaderboard rows")
 
 
 def add_condition_option(p) -> None:
@@ -132,7 +139,7 @@ def _run_eval(args) -> int:
             seed=args.seed, video=args.video, sim_backend=args.sim_backend, label=args.label,
             dataset_revision=args.dataset_revision, max_steps=args.max_steps, chain=args.chain, workers=args.workers,
             ray=args.ray, inputs=args.inputs, blind=args.blind, realtime=realtime, policy_server=server,
-            condition=args.condition, controller=args.controller,
+            condition=args.condition, controller=args.controller, episodes_per_scene=args.episodes_per_scene,
         )
         if args.max_steps is not None and args.max_steps < 1:
             raise ValueError(f"--max-steps must be a positive integer, got {args.max_steps}")

@@ -44,6 +44,7 @@ class EvalConfig:
     episodes_per_object: int = 50
     checkpoint: str | None = None
     num_envs: int = 1
+    episodes_per_scene: int = 1  # episodes that share a scene, an env reset alone between them (`RolloutSpec`)
     seed: int = 0
     video: int = 0  # rollout videos of the first N episodes
     sim_backend: str = "physx_cpu"
@@ -111,6 +112,7 @@ class EvalConfig:
             sim_backend=self.sim_backend, max_steps=self.max_steps, chained=bool(self.chain),
             third_person_episodes=self.video, blind=self.blind, condition=self.condition, realtime=self.realtime,
             policy_server=self.policy_server, controller=self.controller, rotor_statistics=True,
+            episodes_per_scene=self.episodes_per_scene,
         )
         return ResolvedEval(config=self, setting=setting, chain=chain, checkpoints=checkpoints, input_tier=tier,
                             spec=spec)
@@ -183,6 +185,7 @@ def evaluate(
         **({"conditions": resolve_condition(spec.condition).records()} if spec.condition else {}),
         **({"realtime": config.realtime.as_dict()} if config.realtime else {}),
         **({"policy_server": list(config.policy_server.addresses)} if config.policy_server else {}),
+        **({"episodes_per_scene": config.episodes_per_scene} if config.episodes_per_scene > 1 else {}),
     }
     rows = unique_records(record_files)
     results = summarize(rows, provenance, label=config.label, inputs=plan.input_tier)

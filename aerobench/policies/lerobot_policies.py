@@ -173,6 +173,10 @@ class LeRobotPolicy:
         dataset = recorded_path(root, folder.parents[2], recorded.get("output_dir"))
         return dataset_starts(dataset, source=root) if dataset else TrainingStarts(untraced=[str(folder)])
 
+    # LeRobot keeps one action queue (and observation history) for the whole batch: resetting one env clears every
+    # env's, so a runner that resets envs alone (`RolloutSpec.episodes_per_scene`) on a batch refuses this policy
+    resets_whole_batch = True
+
     def reset(self, env_idx: torch.Tensor) -> None:
         self.model.reset()  # clears the action-chunk queue (the runner starts a batch's episodes together)
 

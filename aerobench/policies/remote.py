@@ -252,6 +252,7 @@ class RemotePolicy:
     `select_action` does (`act`), or hands whole chunks to the real-time wrapper (`act_chunk`)."""
 
     chunked = True
+    resets_whole_batch = True  # one queue of chunks for the batch (`LeRobotPolicy.resets_whole_batch`)
 
     def __init__(self, env, address: str, policy: str, checkpoint: str | None, device: str = "cpu"):
         self.name, self.env, self.address = policy, env, address

@@ -29,17 +29,25 @@ def check_action_noise(sigma: float) -> float:
 
 
 class ActionNoise:
-    """Adds N(0, sigma^2) to the flight dimensions of a batch of actions `(N, A)`, from a generator seeded per
-    batch of episodes (the same command draws the same noise); the result stays within the action bounds [-1, 1]."""
+    """Adds N(0, sigma^2) to the flight dimensions of a batch of actions `(N, A)`, row i from a generator seeded with
+    its episode's seed (`seeds[i]`, and again by `restart` when an env begins its next episode): an episode's noise is
+    its seed's, whatever the batch it runs in or the episodes before it on its env. The result stays within the action
+    bounds [-1, 1]."""
 
-    def __init__(self, sigma: float, seed: int):
+    def __init__(self, sigma: float, seeds: list[int]):
         self.sigma = check_action_noise(sigma)
-        self.generator = torch.Generator(device="cpu").manual_seed(int(seed))  # CPU draws: the same noise on any device
+        self.generators = [torch.Generator(device="cpu") for _ in seeds]  # CPU draws: the same noise on any device
+        self.restart(list(range(len(seeds))), seeds)
+
+    def restart(self, rows: list[int], seeds: list[int]) -> None:
+        """Envs `rows` begin the episodes of `seeds`."""
+        for row, seed in zip(rows, seeds, strict=True):
+            self.generators[row].manual_seed(int(seed))
 
     def __call__(self, action: torch.Tensor) -> torch.Tensor:
         if self.sigma == 0.0:
             return action
-        noise = torch.randn((action.shape[0], FLIGHT_ACTION_DIMS), generator=self.generator) * self.sigma
+        noise = torch.cat([torch.randn((1, FLIGHT_ACTION_DIMS), generator=g) for g in self.generators]) * self.sigma
         executed = action.clone()
         executed[:, :FLIGHT_ACTION_DIMS] = (executed[:, :FLIGHT_ACTION_DIMS] + noise.to(action.device)).clamp(-1.0, 1.0)
         return executed

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -27,7 +27,7 @@ from ..envs.rendering import DEFAULT_RENDERING, check_rendering
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
 from ..policies.remote import PolicyServerSpec
-from .batch import BatchStatus, StepBuffer, per_env_signals
+from .batch import BatchStatus, StepBuffer, Wave, per_env_signals
 from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 from .noise import ActionNoise, check_action_noise
@@ -84,6 +84,11 @@ class RolloutSpec:
     # the policy acts through LeRobot's PolicyServer (`policies.remote`); where it is served is not part of the run's
     # identity (`as_dict`): a run resumes against a server restarted elsewhere
     policy_server: PolicyServerSpec | None = None
+    # episodes that share one scene (layout, object and distractors: a reconfiguration), each with its own start from
+    # its own seed (`scene_chunks`): an env that finishes one is reset alone (a partial reset: ManiSkill cannot
+    # reconfigure one env of a batch) and runs the next, so a batch of many envs waits for its slowest G episodes, not
+    # its slowest one; 1: every episode its own scene (every committed row)
+    episodes_per_scene: int = 1
 
     def __post_init__(self):
         setting = get_setting(self.setting)
@@ -146,6 +151,12 @@ class RolloutSpec:
                              "--policy-server evaluate single skills (drop --chain)")
         if self.policy_server is not None:
             self.policy_server.address_for(self.shard)  # one server per shard
+        if not (isinstance(self.episodes_per_scene, int) and self.episodes_per_scene >= 1):
+            raise ValueError(f"--episodes-per-scene must be a positive integer, got {self.episodes_per_scene!r}")
+        if self.episodes_per_scene > 1 and (self.chained or self.realtime):
+            raise ValueError("--episodes-per-scene resets envs alone, which the chained protocol's stage monitor and "
+                             "the real-time clock (one per batch) do not follow: use --episodes-per-scene 1 with "
+                             "--chain or --realtime")
 
     @cached_property
     def checkpoints(self) -> dict[str, str | None]:
@@ -173,15 +184,21 @@ class RolloutSpec:
             **({"labeler": self.labeler} if self.labeler else {}),
             **({"blind": True} if self.blind else {}),
             **({"realtime": self.realtime.as_dict()} if self.realtime else {}),
+            **({"episodes_per_scene": self.episodes_per_scene} if self.episodes_per_scene > 1 else {}),
         }
 
 
 @dataclass(frozen=True)
 class EpisodePlan:
     index: int
-    seed: int
+    seed: int  # the episode's start: the drone's, the object's and the distractors' poses
     skill: str  # a skill or the chain's name
     object: str | None
+    scene_seed: int | None = None  # the seed its scene was built from (None: `seed`; see `scene_chunks`)
+
+    @property
+    def scene(self) -> int:
+        return self.seed if self.scene_seed is None else self.scene_seed
 
 
 def blank_cameras(obs: dict, base) -> dict:
@@ -198,11 +215,34 @@ def plan_episodes(spec: RolloutSpec) -> list[EpisodePlan]:
     setting = get_setting(spec.setting)
     objects = spec.objects or (setting.objects if _uses_object(spec) else (None,))
     plans = []
+    scenes: dict[tuple[str, str | None], list[int]] = {}  # (skill, object): its episodes' seeds so far
     for i in range(spec.episodes):
         skill = spec.skills[i % len(spec.skills)]
         obj = objects[(i // len(spec.skills)) % len(objects)]
-        plans.append(EpisodePlan(i, spec.seed * SEED_STRIDE + i, skill, obj))
+        seed = spec.seed * SEED_STRIDE + i
+        group = scenes.setdefault((skill, obj), [])
+        scene = group[len(group) - len(group) % spec.episodes_per_scene] if len(group) % spec.episodes_per_scene else seed
+        group.append(seed)
+        plans.append(EpisodePlan(i, seed, skill, obj, None if scene == seed else scene))
     return plans
+
+
+def scene_chunks(plans: list[EpisodePlan]) -> list[list[EpisodePlan]]:
+    """`plans` grouped by the scene they run in, each group in plan order, the groups in the order of their first
+    plan. A scene is its (skill, object)'s `episodes_per_scene` consecutive episodes, built from the first one's seed,
+    whatever the shard or the batch size: one env runs a group's episodes one after another (`RolloutRunner`)."""
+    chunks: dict[tuple[str, int], list[EpisodePlan]] = {}
+    for plan in plans:
+        chunks.setdefault((plan.skill, plan.scene), []).append(plan)
+    return list(chunks.values())
+
+
+def check_resets_alone(policy, name: str, num_envs: int) -> None:
+    """A one-line ValueError where resetting one env of a batch alone would disturb the others: a policy that keeps one
+    action queue for the whole batch (LeRobot's, `resets_whole_batch`) clears every env's queue."""
+    if num_envs > 1 and getattr(policy, "resets_whole_batch", False):
+        raise ValueError(f"policy {name!r} keeps one action queue for the whole batch, which a reset of one env clears "
+                         f"for all: use --episodes-per-scene 1 with --num-envs {num_envs}")
 
 
 def episode_limit(env: gym.Env) -> int:
@@ -266,6 +306,8 @@ class RolloutRunner:
                 kwargs["condition"] = spec.condition
             if spec.rotor_statistics:
                 kwargs["rotor_statistics"] = True
+            if spec.episodes_per_scene > 1:
+                kwargs["reconfiguration_freq"] = 0  # the runner reconfigures a batch when it starts new scenes
             if spec.is_chain:
                 env_id, kwargs["chain"] = "AeroSequential-v1", skill
             else:
@@ -280,14 +322,14 @@ class RolloutRunner:
         todo = [p for p in plans if p.index not in done]
         progress = Progress(total=len(plans), done=len(plans) - len(todo))
         n = self.spec.num_envs
+        chunks = scene_chunks(todo)  # one episode each unless episodes share scenes
         try:
-            for start in range(0, len(todo), n):
-                batch = todo[start : start + n]
-                by_skill: dict[str, list[EpisodePlan]] = {}
-                for plan in batch:
-                    by_skill.setdefault(plan.skill, []).append(plan)
-                for skill, plans_of_skill in by_skill.items():
-                    for episode in self._run_batch(skill, plans_of_skill):
+            for start in range(0, len(chunks), n):
+                by_skill: dict[str, list[list[EpisodePlan]]] = {}
+                for chunk in chunks[start : start + n]:
+                    by_skill.setdefault(chunk[0].skill, []).append(chunk)
+                for skill, skill_chunks in by_skill.items():
+                    for episode in self._run_wave(skill, skill_chunks):
                         self.sink.write(episode)
                         progress.done += 1
                         progress.run_done += 1
@@ -314,43 +356,84 @@ class RolloutRunner:
                                  **({"look_first": True} if spec.look_first and not spec.labeler else {}))
         return RealtimePolicy(policy, base, spec.realtime) if spec.realtime is not None else policy
 
-    def _run_batch(self, skill: str, plans: list[EpisodePlan]) -> list[EpisodeData]:
+    def _run_wave(self, skill: str, chunks: list[list[EpisodePlan]]) -> Iterator[EpisodeData]:
+        """Env row i runs `chunks[i]`'s episodes one after another in the scene of its first plan (its scene seed)
+        and yields each episode as a record. The batch reconfigures once; where episodes share scenes, an env whose
+        episode ended is reset alone (a partial reset) into its next one and the ended episode is yielded at once;
+        otherwise every episode is yielded when the batch ends. Rows past `len(chunks)` pad the batch."""
         env = self._env(skill)
         base = env.unwrapped
-        n = base.num_envs
-        objects = [p.object for p in plans] + [plans[-1].object] * (n - len(plans))
-        seeds = [p.seed for p in plans] + [plans[-1].seed] * (n - len(plans))
+        n, device, used = base.num_envs, base.device, len(chunks)
+        pad = [chunks[-1]] * (n - used)  # pad rows repeat the last scene
+        queues = [list(chunk) for chunk in chunks]
+        current: list[EpisodePlan | None] = [queue.pop(0) for queue in queues] + [None] * (n - used)
+        seeds = [chunk[0].scene for chunk in chunks + pad]  # each row's episode seed, now its scene's
         options = {"reconfigure": True}
-        if objects[0] is not None:
-            options["objects"] = objects
+        if chunks[0][0].object is not None:
+            options["objects"] = [chunk[0].object for chunk in chunks + pad]
         obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options=options)
         if self.spec.chained:
             policy = ChainedPolicy(base, self.spec.policy, self.spec.checkpoints)
-            monitor = ChainMonitor([ev.skill for ev in base.evaluators], n, device=base.device)
+            monitor = ChainMonitor([ev.skill for ev in base.evaluators], n, device=device)
         else:
             checkpoint = checkpoint_for(self.spec.checkpoints, skill)  # one, or one per skill
             policy, monitor = self._policy(base, checkpoint), None
         labeler = (make_policy(self.spec.labeler, base, **({"look_first": True} if self.spec.look_first else {}))
                    if self.spec.labeler else None)
-        device = base.device
-        policy.reset(torch.arange(n, device=device))
-        if labeler is not None:
-            labeler.reset(torch.arange(n, device=device))
+        actors = [actor for actor in (policy, labeler) if actor is not None]
+        shares = any(len(chunk) > 1 for chunk in chunks)
+        if shares:
+            check_resets_alone(policy, self.spec.policy, n)
+        for actor in actors:
+            actor.reset(torch.arange(n, device=device))
         max_steps = episode_limit(env)
-        evaluators = [ev.skill for ev in base.evaluators]
         # the batch's bookkeeping stays on the env's device: a step reads two booleans to the host (whether any env
-        # still runs, whether the action is finite), not every signal of every env
-        init_failed = info["init_failed"].clone()
-        for actor in (policy, labeler):
-            if hasattr(actor, "infeasible"):  # the expert's planner rejects starts it has no route from
-                init_failed |= actor.infeasible().to(device)
-        status = BatchStatus((torch.arange(n, device=device) < len(plans)) & ~init_failed, monitor)
-        signals, frames = StepBuffer(max_steps), StepBuffer(max_steps)
-        images: list[dict[str, np.ndarray]] = []  # rendered frames go to the host as they come (`rollout.batch`)
-        tasks = [base.get_instruction(i) for i in range(n)]
-        third_person = any(p.index < self.spec.third_person_episodes for p in plans)
-        perturb = ActionNoise(self.spec.action_noise, seed=seeds[0])
-        for _ in range(max_steps):
+        # still runs, whether the action is finite) and, where episodes share scenes, a third (whether any ended)
+        status = BatchStatus(torch.arange(n, device=device) < used, monitor)
+        wave = Wave(base, status, StepBuffer(max_steps), StepBuffer(max_steps), max_steps)
+        perturb = ActionNoise(self.spec.action_noise, seeds)
+
+        def begin(rows: list[int], info: dict) -> list[int]:
+            """Rows `rows` began the episodes of `seeds`: their start checks and bookkeeping; the rows whose start
+            failed (the env's sampler, or the expert's planner with no route from it)."""
+            index = torch.tensor(rows, device=device)
+            failed = info["init_failed"][index].clone()
+            for actor in actors:
+                if hasattr(actor, "infeasible"):
+                    failed |= actor.infeasible().to(device)[index]
+            perturb.restart(rows, [seeds[i] for i in rows])
+            return wave.begin(rows, failed)
+
+        def reset_rows(rows: list[int]) -> list[int]:
+            """Partial reset: rows `rows` begin the episodes `current` names, in the scenes they have."""
+            nonlocal obs
+            if not rows:
+                return []
+            for i in rows:
+                seeds[i] = current[i].seed
+            index = torch.tensor(rows, device=device)
+            obs, info = env.reset(seed=seeds if n > 1 else seeds[0], options={"env_idx": index, "reconfigure": False})
+            for actor in actors:
+                actor.reset(index)
+            return begin(rows, info)
+
+        def turn_over(rows: list[int]) -> Iterator[EpisodeData]:
+            """The episodes of `rows` ended (or never started): yield them and start each row's next one."""
+            while rows:
+                yield from self._ended(rows, current, wave, evaluators, env, policy)
+                for i in rows:
+                    current[i] = queues[i].pop(0) if queues[i] else None
+                rows = reset_rows([i for i in rows if current[i] is not None])  # their starts that failed
+
+        evaluators = [ev.skill for ev in base.evaluators]
+        failed = begin(list(range(used)), info)
+        resumed = [i for i in range(used) if current[i].seed != seeds[i]]  # a resumed scene's later episode
+        if resumed:
+            failed = [i for i in failed if i not in resumed] + reset_rows(resumed)
+        if shares:
+            yield from turn_over(failed)
+        third_person = any(p.index < self.spec.third_person_episodes for chunk in chunks for p in chunk)
+        for _ in range(max_steps * max(len(chunk) for chunk in chunks)):
             if not status.active.any():
                 break
             if self.spec.blind:
@@ -360,27 +443,30 @@ class RolloutRunner:
                 raise ValueError(f"policy {self.spec.policy!r} produced a non-finite action")
             recorded = (action, policy) if labeler is None else (labeler.act(obs), labeler)
             # the policy's own action, or (DAgger) the expert's label: it acts on every step, its phases follow the flight
-            frames.append(self._frame(obs, *recorded, base))
-            images.append(self._images(obs, base, third_person))
+            wave.frames.append(self._frame(obs, *recorded, base))
+            wave.images.append(self._images(obs, base, third_person))
             obs, _, terminated, truncated, info = env.step(perturb(action))
             step = per_env_signals(info, n)
             status.advance(terminated, truncated, step)
-            signals.append(step)
+            wave.signals.append(step)
+            if shares and status.ended.any():
+                yield from turn_over(status.ended.nonzero()[:, 0].tolist())
         status.out_of_time()
-        trace, recorded_frames = signals.to_host(), frames.to_host()
-        steps, truncated_at, init_failed = status.steps.tolist(), status.truncated.tolist(), init_failed.tolist()
-        episodes = [
-            self._episode(
-                plans[i], i, recorded_frames, images, trace, steps[i], truncated_at[i], init_failed[i], tasks[i],
-                evaluators, base, env.spec.id,
-            )
-            for i in range(len(plans))
-        ]
-        if isinstance(policy, RealtimePolicy):  # the latency each episode saw: a summary in its record, per step kept
-            for episode in episodes:
+        yield from self._ended([i for i in range(used) if current[i] is not None], current, wave, evaluators, env,
+                               policy)
+
+    def _ended(self, rows: list[int], current: list[EpisodePlan | None], wave: Wave, evaluators: list[str],
+               env: gym.Env, policy) -> Iterator[EpisodeData]:
+        """The episodes `current` names on `rows`, which have ended: their records (one transfer per buffer key)."""
+        if not rows:
+            return
+        for i, (recorded, shots, trace, steps, truncated, init_failed, task) in zip(rows, wave.episodes(rows)):
+            episode = self._episode(current[i], i, recorded, shots, trace, steps, truncated, init_failed, task,
+                                    evaluators, wave.base, env.spec.id)
+            if isinstance(policy, RealtimePolicy):  # the latency the episode saw: a summary in its record, per step kept
                 episode.extra["realtime"] = policy.summary(episode.record.steps)
                 episode.signals.update(policy.trace(episode.record.steps))
-        return episodes
+            yield episode
 
     def _frame(self, obs, action, policy, base) -> dict[str, torch.Tensor]:
         """What a step records of the acting (or labelling) policy, as `(N, ...)` tensors on the env's device, in the
@@ -407,9 +493,9 @@ class RolloutRunner:
 
     def _episode(self, plan, row, frames, images, signals, steps, truncated, init_failed, task, evaluators, base,
                  env_id) -> EpisodeData:
-        """Episode `row` of a finished batch: `frames` and `signals` are `(T, N, ...)` arrays, `images` one dict a step."""
+        """The episode that env `row` ran: `frames` and `signals` its `(T, ...)` arrays, `images` one dict a step."""
         spec = self.spec
-        trace = {k: v[:steps, row].copy() for k, v in signals.items()} if steps else {}
+        trace = signals if steps else {}
         segments = ()
         if init_failed or not spec.is_chain:
             outcome = categorize(evaluators[0], trace, truncated, init_failed=init_failed)
@@ -431,10 +517,9 @@ class RolloutRunner:
         )
         data = {}
         if steps:
-            for key, value in frames.items():
-                data[key] = value[:steps, row].copy()
+            data.update(frames)
             for key in images[0]:
-                data[key] = np.stack([frame[key][row] for frame in images[:steps]])
+                data[key] = np.stack([frame[key] for frame in images])
             data["events"] = np.stack([trace.get(k, np.zeros(steps)).astype(np.float32) for k in EVENT_FLAGS], -1)
             stage = trace.get("subtask_index", np.zeros(steps)).astype(np.int64)
             # the env reports the stage after the step; the stage acting on step t is the one before it
@@ -448,6 +533,8 @@ class RolloutRunner:
             "chain": plan.skill if spec.is_chain else None,
             "init_failed": init_failed,
             **({"labeler": spec.labeler} if spec.labeler else {}),
+            # where episodes share scenes: the seed its scene (layout, object, distractors) was built from
+            **({"scene_seed": plan.scene} if spec.episodes_per_scene > 1 else {}),
         }
         kept = {k: trace[k] for k in spec.keep_signals if k in trace}
         return EpisodeData(record=record, frames=data, task=task, skills=tuple(evaluators), extra=extra, signals=kept)

@@ -68,7 +68,7 @@ STATE_KEY, ACTION_KEY, TASK_STATE_KEY = "observation.state", "action", "observat
 STAGE_KEY, PHASE_KEY = "annotation.stage", "annotation.phase"
 # Options that may change when a run is resumed: the budget, the bookkeeping cadence, and `out` (a run folder may be
 # moved).
-RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads", "out")
+RESUMABLE_CHANGES = ("steps", "save_every", "log_every", "progress", "threads", "out", "close_threshold")
 # What a `vision`-tier policy reads by default (`--inputs vision`): its flight state in its own heading frame, its
 # fingers, the yaw turned since the start (the place holds the heading it began with), and the instruction; it acts
 # in its heading frame (policies.egocentric). docs/experiments.md, "Policies that see", measures the choices.
@@ -93,6 +93,9 @@ class BCConfig:
                          "(the expert waits for the drone to settle before it descends, closes or opens)"})
     gripper: str = field(default="binary", metadata={"help": "gripper head: binary (open/close classification) "
                          "or continuous (regressed with the other dimensions)"})
+    close_threshold: float = field(default=0.5, metadata={"help": "binary gripper head: the policy keeps the "
+                                   "gripper closed while P(close) exceeds this (checkpoint model.close_threshold; a "
+                                   "high one opens earlier in a release the head learned late, docs/experiments.md)"})
     gripper_weight: float = field(default=1.0, metadata={"help": "weight of the gripper's classification loss"})
     onset_weight: float = field(default=10.0, metadata={"help": "weight of the frames where the expert's gripper "
                                 "command switches (in the classification loss)"})
@@ -186,6 +189,9 @@ class BCConfig:
             raise ValueError(f"--aux-weight must not be negative, got {self.aux_weight}")
         if self.phase_onset_weight < 1:
             raise ValueError(f"--phase-onset-weight must be at least 1, got {self.phase_onset_weight}")
+        if not 0.0 < self.close_threshold < 1.0 or (self.close_threshold != 0.5 and self.gripper != "binary"):
+            raise ValueError(f"--close-threshold must be between 0 and 1 and needs --gripper binary, got "
+                             f"{self.close_threshold}")
         if self.gripper_weight < 0 or self.onset_weight < 1:
             raise ValueError("--gripper-weight must not be negative and --onset-weight must be at least 1")
         for name in ("steps", "batch_size", "save_every", "log_every", "image_size", "threads"):
@@ -455,6 +461,8 @@ def _train_bc(config: BCConfig) -> Path:
         actor.load_state_dict({k.removeprefix("actor."): v for k, v in load_weights(checkpoint).items()})
         optimizer.load_state_dict(train_state["optimizer"])
 
+    if config.close_threshold != 0.5:  # a setting of the acting policy, not of its training (older checkpoints: none)
+        model = {**model, "close_threshold": config.close_threshold}
     meta = {"algorithm": "bc", "model": model, "train": current, "data": facts, "inputs_tier": model_tier(model),
             "platform": facts["robot_type"].removeprefix("aerobench_") if facts["robot_type"] else None}
 

@@ -65,3 +65,7 @@ def test_the_workers_run_on_physx_cpu_and_their_rows_render():
         {**job, "rows": [starts]}, CONTEXT)
     assert f"| AeroFly-v1 | state | 1 | {fly['setup_s']} |" in gpu_check.render_throughput({**job, "rows": [fly]}, CONTEXT)
     assert "| PGS | 1 |" in gpu_check.render_expert([{**job, "rows": [expert]}], CONTEXT)
+    runs = list(gpu_check.runner_rows("physx_cpu", 1, deadline=float("inf"), max_steps=3))
+    assert [(r["episodes_per_scene"], r["episodes"]) for r in runs] == [(1, 2), (2, 2)], runs
+    assert all("error" not in r and r["episodes_per_min"] > 0 for r in runs)
+    assert "| 1 | 2 | 2 | 0 |" in gpu_check.render_runner({**job, "rows": runs}, CONTEXT)

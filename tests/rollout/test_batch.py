@@ -11,23 +11,29 @@ from tests.envs.host_sync import NoHostSync
 
 
 def test_the_buffer_stacks_steps_as_time_by_env_and_copies_each_step():
-    buffer = StepBuffer(max_steps=5)
+    buffer = StepBuffer(capacity=5)
     reused = torch.zeros(3)  # an env that writes its info tensors in place from step to step
     for t in range(3):
         reused.fill_(t)
         buffer.append({"x": reused, "pose": torch.full((3, 2), float(t))})
-    host = buffer.to_host()
-    assert host["x"].shape == (3, 3) and host["pose"].shape == (3, 3, 2)  # (steps, N, ...), not max_steps
-    np.testing.assert_array_equal(host["x"][:, 1], [0, 1, 2])  # each step as it was, not the last value thrice
-    assert isinstance(host["x"], np.ndarray)
+    host = buffer.rows_to_host([1, 2])
+    assert host["x"].shape == (5, 2) and host["pose"].shape == (5, 2, 2)  # (capacity, rows, ...)
+    episode = buffer.episode_steps(host, 0, first=0, steps=3)
+    np.testing.assert_array_equal(episode["x"], [0, 1, 2])  # each step as it was, not the last value thrice
+    assert episode["pose"].shape == (3, 2) and isinstance(episode["x"], np.ndarray)
 
 
-def test_the_buffer_refuses_a_step_too_many_and_a_changed_key_set():
-    buffer = StepBuffer(max_steps=1)
-    buffer.append({"x": torch.zeros(2)})
-    with pytest.raises(ValueError, match="more than its 1 steps"):
-        buffer.append({"x": torch.zeros(2)})
-    buffer = StepBuffer(max_steps=4)
+def test_the_ring_keeps_the_last_capacity_steps_and_refuses_what_it_overwrote():
+    buffer = StepBuffer(capacity=4)
+    for t in range(7):  # env 0's episode began at step 5, after steps 0-4 of another
+        buffer.append({"x": torch.tensor([float(t), 10.0 + t])})
+    host = buffer.rows_to_host([0])
+    np.testing.assert_array_equal(buffer.episode_steps(host, 0, first=5, steps=2)["x"], [5, 6])
+    np.testing.assert_array_equal(buffer.episode_steps(host, 0, first=3, steps=4)["x"], [3, 4, 5, 6])
+    with pytest.raises(ValueError, match="not in the ring"):
+        buffer.episode_steps(host, 0, first=2, steps=5)  # step 2 was overwritten by step 6
+    with pytest.raises(ValueError, match="not in the ring"):
+        buffer.episode_steps(host, 0, first=6, steps=2)  # step 7 was never written
     buffer.append({"x": torch.zeros(2)})
     with pytest.raises(ValueError, match="keys"):
         buffer.append({"x": torch.zeros(2), "y": torch.zeros(2)})
@@ -49,6 +55,12 @@ def test_status_counts_live_steps_and_ends_terminated_and_truncated_envs():
     assert status.truncated.tolist() == [False, True, False, False]
     status.out_of_time()
     assert status.truncated.tolist() == [False, True, True, False]
+    status.restart(torch.tensor([1]), torch.tensor([True]))  # env 1 begins its next episode (a partial reset)
+    status.advance(no, no, {})
+    assert status.steps.tolist() == [1, 1, 4, 0] and status.active.tolist() == [False, True, True, False]
+    assert status.truncated.tolist() == [False, False, True, False]
+    status.advance(torch.tensor([False, True, False, False]), no, {})
+    assert status.ended.tolist() == [False, True, False, False]  # ended at this step: the runner resets it
 
 
 def test_status_under_the_chained_protocol_ends_a_stage_over_budget_and_marks_a_lost_grasp():
@@ -75,7 +87,7 @@ def test_status_under_the_chained_protocol_ends_a_stage_over_budget_and_marks_a_
 def test_a_step_of_bookkeeping_reads_nothing_to_the_host():
     monitor = ChainMonitor(["pick", "nav", "place"], num_envs=3)
     status = BatchStatus(torch.ones(3, dtype=torch.bool), monitor)
-    buffer = StepBuffer(max_steps=2)
+    buffer = StepBuffer(capacity=2)
     info = {"subtask_index": torch.tensor([0, 1, 1]), "is_grasp_held": torch.tensor([True, False, True]),
             "tcp_to_grasp_point": torch.zeros(3), "fail": torch.zeros(3, dtype=torch.bool),
             "fail_cause": torch.zeros(3, dtype=torch.long), "success": torch.zeros(3, dtype=torch.bool)}
@@ -84,3 +96,4 @@ def test_a_step_of_bookkeeping_reads_nothing_to_the_host():
         status.advance(torch.tensor([False, True, False]), torch.zeros(3, dtype=torch.bool), step)
         buffer.append(step)
         status.out_of_time()
+        status.restart(torch.tensor([1]), torch.tensor([True]))  # a partial reset: env 1 runs its next episode

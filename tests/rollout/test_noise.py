@@ -13,14 +13,21 @@ from aerobench.rollout.runner import RolloutRunner, RolloutSpec
 
 def test_noise_perturbs_only_the_flight_commands_reproducibly_and_within_bounds():
     action = torch.tensor([[0.1, -0.2, 0.3, 0.0, -1.0], [0.99, 0.0, 0.0, 0.0, 1.0]])
-    first, second = ActionNoise(0.3, seed=5)(action), ActionNoise(0.3, seed=5)(action)
-    assert torch.equal(first, second)  # same seed, same noise
+    first, second = ActionNoise(0.3, seeds=[5, 9])(action), ActionNoise(0.3, seeds=[5, 9])(action)
+    assert torch.equal(first, second)  # same seeds, same noise
     assert not torch.equal(first[:, :FLIGHT_ACTION_DIMS], action[:, :FLIGHT_ACTION_DIMS])
     assert torch.equal(first[:, FLIGHT_ACTION_DIMS:], action[:, FLIGHT_ACTION_DIMS:])  # the gripper is never perturbed
     assert first.abs().max() <= 1.0
-    assert not torch.equal(ActionNoise(0.3, seed=6)(action), first)
-    assert torch.equal(ActionNoise(0.0, seed=5)(action), action)
+    assert not torch.equal(ActionNoise(0.3, seeds=[6, 9])(action)[0], first[0])
+    assert torch.equal(ActionNoise(0.3, seeds=[6, 9])(action)[1], first[1])  # a row's noise is its own seed's
+    assert torch.equal(ActionNoise(0.3, seeds=[9, 5])(action[[1, 0]]), first[[1, 0]])  # in any row of any batch
+    assert torch.equal(ActionNoise(0.0, seeds=[5, 9])(action), action)
     assert torch.equal(action[0], torch.tensor([0.1, -0.2, 0.3, 0.0, -1.0]))  # the caller's tensor is untouched
+    noise = ActionNoise(0.3, seeds=[5, 9])
+    noise(action)
+    noise.restart([0], [5])  # env 0 begins another episode of seed 5: its noise starts again, env 1's continues
+    again = noise(action)
+    assert torch.equal(again[0], first[0]) and not torch.equal(again[1], first[1])
 
 
 @pytest.mark.parametrize("sigma", [-0.1, float("nan"), 0.7, "0.1"])

@@ -178,6 +178,21 @@ def test_auxiliary_targets_train_a_head_the_policy_never_reads(camera_dataset, t
         BCConfig(dataset="d", out="o", inputs="vision", images=True, aux_fields=("goal",))
 
 
+def test_a_release_threshold_given_at_training_is_the_checkpoints_and_the_policy_acts_on_it(camera_dataset, tmp_path):
+    from aerobench.policies.learned import BCPolicy
+
+    ckpt = _vision(camera_dataset, tmp_path / "t098", close_threshold=0.98)
+    assert json.loads((ckpt / "config.json").read_text())["model"]["close_threshold"] == 0.98
+    assert BCPolicy.checked_config(ckpt)[1]["model"]["close_threshold"] == 0.98
+    resumed = _vision(camera_dataset, tmp_path / "t098", close_threshold=0.9, steps=4)  # resumable: acting, not training
+    assert json.loads((resumed / "config.json").read_text())["model"]["close_threshold"] == 0.9
+    default = _vision(camera_dataset, tmp_path / "t05")
+    assert "close_threshold" not in json.loads((default / "config.json").read_text())["model"]  # as before the option
+    for bad in (dict(close_threshold=1.0), dict(close_threshold=0.9, gripper="continuous")):
+        with pytest.raises(ValueError, match="--close-threshold must be between 0 and 1"):
+            BCConfig(dataset="d", out="o", **bad)
+
+
 def test_film_lets_the_instruction_change_what_the_camera_cnn_sees(camera_dataset, tmp_path):
     """`--film`: the instruction scales and shifts each convolution's channels; at initialisation it is the plain CNN
     (zero FiLM weights), and once the FiLM layer moves, two instructions give the same image different features."""
