@@ -17,7 +17,8 @@ stopped. Prints the table and writes `vision.json` (and a learning-curve PNG wit
 A curve of evaluations already run (runs trained by hand with one recipe and `train bc --max-transitions`, scored
 on the same starts): `--curve-from FRACTION=RESULTS[,RESULTS]` once per point (several sets of starts pooled), with
 the runs' --steps, --setting, --skill and --eval-seed; it writes `curve.json` under --out (and the PNG with --plot)
-and trains nothing.
+and trains nothing. With `--over steps` each point is `STEPS=RESULTS` instead: checkpoints of one run on all its
+demonstrations, after that many gradient steps (--steps: the longest).
 
     python bench/vision_policies.py --dataset DATA --skill place --out outputs/vision/place [--seeds 0,1]
         [--steps 10000] [--per-object 20] [--eval-seed 4200] [--workers 2] [--fractions 0.25,0.5]
@@ -154,14 +155,16 @@ def table(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def curve_from(points: list[str], steps: int, setting: str, skill: str, eval_seed: str, out: Path) -> dict:
+def curve_from(points: list[str], steps: int, setting: str, skill: str, eval_seed: str, out: Path,
+               over: str = "fraction") -> dict:
     """The learning curve of evaluations already run: `FRACTION=RESULTS[,RESULTS...]` per point (results.json files or
-    their folders; several, e.g. two sets of held-out starts, are pooled episode by episode)."""
+    their folders; several, e.g. two sets of held-out starts, are pooled episode by episode); with `over="steps"`,
+    `STEPS=RESULTS...`: one run's checkpoints on all its data."""
     from aerobench.eval.results import over_all_cells
 
     curve = []
     for point in points:
-        fraction, _, paths = point.partition("=")
+        x, _, paths = point.partition("=")
         runs = []
         for path in paths.split(","):
             path = Path(path) / "results.json" if Path(path).is_dir() else Path(path)
@@ -170,10 +173,10 @@ def curve_from(points: list[str], steps: int, setting: str, skill: str, eval_see
             runs.append((str(path), json.loads(path.read_text())))
         cells = [c for _, r in runs for c in r["cells"]]
         pooled = {**runs[0][1], "cells": cells, "mean_sr": over_all_cells({"cells": cells})["success_rate"]}
-        curve.append(row(runs[0][1]["label"], pooled, steps=steps, fraction=float(fraction),
-                         sources=[p for p, _ in runs]))
+        at = dict(steps=int(x), fraction=1.0) if over == "steps" else dict(steps=steps, fraction=float(x))
+        curve.append(row(runs[0][1]["label"], pooled, **at, sources=[p for p, _ in runs]))
     summary = {"budget": {"steps": steps, "setting": setting, "skill": skill, "eval_seed": eval_seed},
-               "rows": [], "comparisons": {}, "learning_curve": sorted(curve, key=lambda r: r["fraction"])}
+               "rows": [], "comparisons": {}, "learning_curve": sorted(curve, key=lambda r: r[over])}
     out.mkdir(parents=True, exist_ok=True)
     (out / "curve.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
@@ -237,6 +240,8 @@ def main(argv: list[str] | None = None) -> dict:
     if "--curve-from" in argv:
         p = argparse.ArgumentParser(description="a learning curve from evaluations already run")
         p.add_argument("--curve-from", action="append", required=True, metavar="FRACTION=RESULTS")
+        p.add_argument("--over", choices=("fraction", "steps"), default="fraction",
+                       help="what each point's number is: the fraction of the demonstrations or the gradient steps")
         p.add_argument("--steps", type=int, required=True)
         p.add_argument("--setting", default="PrepareGroceries")
         p.add_argument("--skill", default="place")
@@ -244,7 +249,7 @@ def main(argv: list[str] | None = None) -> dict:
         p.add_argument("--out", type=Path, default=Path("outputs/bench/vision"))
         p.add_argument("--plot", type=Path)
         a = p.parse_args(argv)
-        summary = curve_from(a.curve_from, a.steps, a.setting, a.skill, a.eval_seed, a.out)
+        summary = curve_from(a.curve_from, a.steps, a.setting, a.skill, a.eval_seed, a.out, a.over)
         print(table(summary))
         if a.plot:
             plot(summary, a.plot)

@@ -76,3 +76,15 @@ def test_a_curve_from_evaluations_already_run_trains_nothing_and_plots_the_fract
     with pytest.raises(SystemExit, match="no results"):
         vp.main(["--curve-from", f"0.5={tmp_path / 'missing'}", "--steps", "600", "--eval-seed", "7",
                  "--out", str(tmp_path / "out")])
+
+
+def test_a_curve_over_training_steps_from_one_runs_checkpoints(tmp_path):
+    points = []
+    for steps, successes in ((1000, 0), (3000, 2), (6000, 3)):
+        (tmp_path / f"at{steps}.json").write_text(json.dumps({**_results(successes, 4), "label": f"at{steps}"}))
+        points += ["--curve-from", f"{steps}={tmp_path / f'at{steps}.json'}"]
+    summary = vp.main(points + ["--over", "steps", "--steps", "6000", "--eval-seed", "7", "--out", str(tmp_path / "o"),
+                                "--plot", str(tmp_path / "steps.png")])
+    assert [(r["steps"], r["fraction"], r["successes"]) for r in summary["learning_curve"]] == [
+        (1000, 1.0, 0), (3000, 1.0, 2), (6000, 1.0, 3)]
+    assert (tmp_path / "steps.png").stat().st_size > 0

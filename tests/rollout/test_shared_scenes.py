@@ -11,9 +11,9 @@ import pytest
 import torch
 
 from aerobench.envs.checker import SKILL_ENV_IDS
-from aerobench.rollout.episode import EpisodeList
 from aerobench.policies.lerobot_policies import LeRobotPolicy
 from aerobench.policies.remote import RemotePolicy
+from aerobench.rollout.episode import EpisodeList
 from aerobench.rollout.runner import RolloutRunner, RolloutSpec, check_resets_alone, plan_episodes, scene_chunks
 
 STEPS = 25  # a few control steps an episode: the starts and the bookkeeping are the point, not the flight
