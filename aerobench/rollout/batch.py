@@ -5,7 +5,7 @@ The rollout runner used to copy every info tensor and the state, task state and 
 written into a preallocated ring of `(T, N, ...)` tensors on the env's device, T the longest an episode runs; when
 episodes end, `rows_to_host` makes one transfer per key for all of them, and `episode_steps` cuts each one's steps out
 on the host. A ring, because with partial resets (`RolloutSpec.episodes_per_scene`) an env's next episode starts
-while the others run on: each episode's steps are the last `steps` written before it ended. Camera images are the
+while the others run on: `Wave` keeps the step each env's episode began at, and its steps are cut from there. Camera images are the
 exception (`host_frames`): T x N x 3 cameras of 128x128 RGB-D do not fit a GPU's memory for a 1,000-step batch of
 1,024 envs, so they go to the host as they are rendered, as before.
 """
@@ -100,8 +100,9 @@ class Wave:
     phase in `frames`, the info signals in `signals`, the rendered images on the host in `images`), and each env's
     current episode: the step it began at, whether its start failed, its instruction."""
 
-    def __init__(self, base, status: BatchStatus, signals: StepBuffer, frames: StepBuffer, capacity: int):
-        self.base, self.status, self.signals, self.frames = base, status, signals, frames
+    def __init__(self, base, status: BatchStatus, capacity: int):
+        self.base, self.status = base, status
+        self.signals, self.frames = StepBuffer(capacity), StepBuffer(capacity)  # `capacity`: the longest episode
         self.images: deque[dict[str, np.ndarray]] = deque(maxlen=capacity)
         n = base.num_envs
         self.first = [0] * n

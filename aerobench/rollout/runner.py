@@ -27,7 +27,7 @@ from ..envs.rendering import DEFAULT_RENDERING, check_rendering
 from ..envs.tasks import SKILLS, get_setting
 from ..policies import make_policy
 from ..policies.remote import PolicyServerSpec
-from .batch import BatchStatus, StepBuffer, Wave, per_env_signals
+from .batch import BatchStatus, Wave, per_env_signals
 from .chained import ChainedPolicy, ChainMonitor, checkpoint_for, split_checkpoints
 from .episode import CAMERAS, EVENT_FLAGS, EpisodeData, EpisodeSink
 from .noise import ActionNoise, check_action_noise
@@ -390,7 +390,7 @@ class RolloutRunner:
         # the batch's bookkeeping stays on the env's device: a step reads two booleans to the host (whether any env
         # still runs, whether the action is finite) and, where episodes share scenes, a third (whether any ended)
         status = BatchStatus(torch.arange(n, device=device) < used, monitor)
-        wave = Wave(base, status, StepBuffer(max_steps), StepBuffer(max_steps), max_steps)
+        wave = Wave(base, status, max_steps)
         perturb = ActionNoise(self.spec.action_noise, seeds)
 
         def begin(rows: list[int], info: dict) -> list[int]:
