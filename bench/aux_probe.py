@@ -31,6 +31,7 @@ from aerobench.policies.learned import load_actor  # noqa: E402
 from aerobench.train.bc import BCConfig, load_demos  # noqa: E402
 
 DISTANCE_BINS_M = (0.1, 0.3, 1.0)  # |goal_pos| edges: at the goal, the final approach, across the room
+KEYPOINT_PX = 64  # image units (-1 to 1) to pixels of the 128-px camera image
 
 
 def _config(checkpoint: Path, dataset: str) -> BCConfig:
@@ -50,23 +51,27 @@ def main(argv=None) -> dict:
     config = _config(checkpoint, args.dataset)
     if not config.aux_fields:
         sys.exit(f"{checkpoint} has no auxiliary head (trained without --aux-fields)")
+    keypoints = config.goal_keypoint_weight > 0  # its first keypoint per camera was trained onto the goal
     _, actor, normalizer = load_actor(checkpoint)
     train_aux = load_demos(BCConfig(**{**config.__dict__, "dataset": args.train_dataset, "images": True,
-                                       "blind": True}))[0]["aux"]
+                                       "blind": True, "goal_keypoint_weight": 0.0}))[0]["aux"]
     mean, std = train_aux.mean(0), train_aux.std(0, unbiased=False).clamp_min(1e-6)
     data, _ = load_demos(BCConfig(**{**config.__dict__, "aux_fields": (*config.aux_fields, "goal_pos")}))
     width = data["aux"].shape[1] - 3
     truth, goal_distance = data["aux"][:, :width], data["aux"][:, width:].norm(dim=-1)
     cameras = config.cameras if config.images and not config.blind else ()
     states = normalizer.state(data["state"])
-    predicted = []
+    predicted, found = [], {cam: [] for cam in cameras}
     with torch.no_grad():
         for i in range(0, len(states), args.batch):
             batch = {"state": states[i:i + args.batch],
                      **{cam: as_network_input(data[cam][i:i + args.batch]) for cam in cameras}}
             if "instruction" in data:
                 batch["instruction"] = data["instruction"][i:i + args.batch]
-            predicted.append(actor.aux(actor.embed(batch)) * std + mean)
+            kp = {} if keypoints else None
+            predicted.append(actor.aux(actor.embed(batch, kp)) * std + mean)
+            for cam, k in (kp or {}).items():
+                found[cam].append(k[:, [0, k.shape[1] // 2]])
     error = torch.cat(predicted) - truth
     widths = dict(TASK_STATE_FIELDS)
     names = [f"{f}[{j}]" if widths[f] > 1 else f for f in config.aux_fields for j in range(widths[f])]
@@ -79,6 +84,15 @@ def main(argv=None) -> dict:
         if inside.any():
             out["by_goal_distance_m"].append({"from": lo, "to": hi, "frames": int(inside.sum()),
                                               "rmse": error[inside].pow(2).mean(0).sqrt().tolist()})
+    if keypoints:  # the goal keypoint's error, in pixels of the 128-px camera image, where the goal is in view
+        out["goal_keypoint_px"] = {}
+        for c, cam in enumerate(cameras):
+            seen = data["goal_visible"][:, c]
+            miss = (torch.cat(found[cam]) - data["goal_xy"][:, c]).norm(dim=-1) * KEYPOINT_PX
+            out["goal_keypoint_px"][cam] = [
+                {"from": lo, "to": hi, "frames": int(m.sum()), "median": float(miss[m].median())}
+                for lo, hi in zip(edges[:-1], edges[1:]) for m in [seen & (goal_distance >= lo) & (goal_distance < hi)]
+                if m.any()]
     print(f"{checkpoint}: {out['frames']} held-out frames of {args.dataset}")
     print("field".ljust(22) + "spread (rms)".rjust(14) + "head error (rms)".rjust(18))
     for name, spread, rmse in zip(names, out["spread_rms"], out["rmse"]):
@@ -86,6 +100,9 @@ def main(argv=None) -> dict:
     for row in out["by_goal_distance_m"]:
         print(f"|goal| {row['from']:.1f}-{row['to']:.1f} m ({row['frames']} frames): "
               + ", ".join(f"{n} {e:.3f}" for n, e in zip(names, row["rmse"])))
+    for cam, rows in out.get("goal_keypoint_px", {}).items():
+        print(f"goal keypoint, {cam}: " + ", ".join(f"|goal| {r['from']:.1f}-{r['to']:.1f} m median {r['median']:.1f} px "
+                                                    f"({r['frames']} frames)" for r in rows))
     return out
 
 

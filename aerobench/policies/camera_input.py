@@ -48,15 +48,22 @@ def as_network_input(images: torch.Tensor) -> torch.Tensor:
     return images.float() / UINT8_MAX
 
 
-def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator) -> torch.Tensor:
+def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator,
+                 offsets_out: list | None = None) -> torch.Tensor:
     """Each image `(N, C, s, s)` shifted by up to `pad` pixels in x and y (edges repeated): the same scene seen from a
-    slightly different place, so the network does not key on exact pixel positions (DrQ, Kostrikov et al. 2020)."""
-    if pad == 0:
-        return images
+    slightly different place, so the network does not key on exact pixel positions (DrQ, Kostrikov et al. 2020).
+    `offsets_out`, if given, receives the drawn crop origins `(N, 2)` (x, y; `pad` is no shift), so a label that
+    names an image position can move with its image (`train.goal_pixels.shifted`)."""
     n, c, h, w = images.shape
+    if pad == 0:
+        if offsets_out is not None:
+            offsets_out.append(torch.zeros(n, 2, dtype=torch.long))
+        return images
     padded = F.pad(images, (pad, pad, pad, pad), mode="replicate")
     dy = torch.randint(0, 2 * pad + 1, (n,), generator=generator).to(images.device)
     dx = torch.randint(0, 2 * pad + 1, (n,), generator=generator).to(images.device)
+    if offsets_out is not None:
+        offsets_out.append(torch.stack([dx, dy], -1).cpu())
     rows = (dy[:, None] + torch.arange(h, device=images.device))[:, None, :, None].expand(n, c, h, w + 2 * pad)
     cropped = padded.gather(2, rows)
     cols = (dx[:, None] + torch.arange(w, device=images.device))[:, None, None, :].expand(n, c, h, w)

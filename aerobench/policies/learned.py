@@ -121,20 +121,29 @@ class CameraEncoder(nn.Module):
         else:
             self.head = nn.Sequential(nn.Flatten(), nn.Linear(c_in * side * side, feature_dim), nn.ReLU())
 
-    def forward(self, images: torch.Tensor, film: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, images: torch.Tensor, film: torch.Tensor | None = None,
+                keypoints_out: list | None = None) -> torch.Tensor:
         """`film` `(N, 2 * sum(channels))`: a scale and a shift per channel of each convolution (FiLM, Perez et al.
-        2018), applied before its ReLU, so the instruction decides which things the maps respond to."""
+        2018), applied before its ReLU, so the instruction decides which things the maps respond to.
+        `keypoints_out` (keypoint head only) receives the keypoints `(N, 2K)` (x of each map, then y of each)."""
         if film is None:
-            return self.head(self.conv(images))
-        x, start = images, 0
-        for layer in self.conv:
-            x = layer(x)
-            if isinstance(layer, nn.Conv2d):
-                c = layer.out_channels
-                gamma, beta = film[:, start:start + c], film[:, start + c:start + 2 * c]
-                x = x * (1.0 + gamma[:, :, None, None]) + beta[:, :, None, None]
-                start += 2 * c
-        return self.head(x)
+            x = self.conv(images)
+        else:
+            x, start = images, 0
+            for layer in self.conv:
+                x = layer(x)
+                if isinstance(layer, nn.Conv2d):
+                    c = layer.out_channels
+                    gamma, beta = film[:, start:start + c], film[:, start + c:start + 2 * c]
+                    x = x * (1.0 + gamma[:, :, None, None]) + beta[:, :, None, None]
+                    start += 2 * c
+        if keypoints_out is None:
+            return self.head(x)
+        if not isinstance(self.head[1], SpatialSoftmax):
+            raise ValueError("keypoints need the keypoint head (--encoder-head keypoints)")
+        keypoints = self.head[1](self.head[0](x))  # the head is maps -> keypoints -> features, one Sequential
+        keypoints_out.append(keypoints)
+        return self.head[3](self.head[2](keypoints))
 
 
 class Trunk(nn.Module):
@@ -175,8 +184,9 @@ class Trunk(nn.Module):
     def forward(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
         return self.mlp(self.embed(inputs))
 
-    def embed(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
-        """The features the MLP reads: the state, each camera's features and the instruction's embedding."""
+    def embed(self, inputs: dict[str, torch.Tensor], keypoints: dict[str, torch.Tensor] | None = None) -> torch.Tensor:
+        """The features the MLP reads: the state, each camera's features and the instruction's embedding.
+        `keypoints`, if given, receives each camera's encoder keypoints `(N, 2K)` (keypoint head only)."""
         parts = [inputs["state"]]
         n = inputs["state"].shape[0]
         words = self.words(inputs["instruction"]) if self.instruction_dim else None
@@ -184,11 +194,14 @@ class Trunk(nn.Module):
         if self.cameras:
             shape = (n, IMAGE_CHANNELS, self.image_size, self.image_size)
             images = [inputs[c] if not self.blind else inputs["state"].new_zeros(shape) for c in self.cameras]
+            found: list[torch.Tensor] | None = None if keypoints is None else []
             if self.separate:
-                parts += [self.encoders[c](x, film) for c, x in zip(self.cameras, images)]
+                parts += [self.encoders[c](x, film, found) for c, x in zip(self.cameras, images)]
             else:  # one encoder pass for all cameras; each camera's features keep their slot
                 batch_film = None if film is None else film.repeat(len(self.cameras), 1)
-                parts += list(self.encoder(torch.cat(images, 0), batch_film).split(n, 0))
+                parts += list(self.encoder(torch.cat(images, 0), batch_film, found).split(n, 0))
+            if keypoints is not None:
+                keypoints.update(zip(self.cameras, found if self.separate else found[0].split(n, 0)))
         if words is not None:
             parts.append(words)
         return torch.cat(parts, -1)

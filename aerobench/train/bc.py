@@ -32,10 +32,11 @@ from torch.nn import functional as F
 
 from .. import tiers
 from ..envs.observations import STATE_DIM, TASK_STATE_VERSION, task_state_field_names, task_state_fields
+from ..envs.platforms import get_platform
 from ..envs.tasks import SKILLS
 from ..export.features import VIDEO_BACKEND
 from ..export.layout import dataset_task_state_version
-from ..policies.camera_input import as_network_input, random_shift
+from ..policies.camera_input import DEPTH_STEP_M, as_network_input, random_shift
 from ..policies.egocentric import to_heading_frame, yaw_of
 from ..policies.inputs import ALL_TASK_FIELDS, InputSpec
 from ..policies.instruction import instruction_tokens
@@ -60,6 +61,7 @@ from ..policies.provenance import TrainingStarts, dataset_starts
 from ..threads import torch_threads
 from .camera_frames import camera_frames
 from .common import ScalarLog, check_resumable, config_dict, load_train_state, seed_everything
+from .goal_pixels import goal_pixels, shifted, unoccluded
 
 OUTCOMES = ("S", "F", "T", "I")
 BATCH_SEED_STRIDE = 1_000_003  # batch generator seed = seed * stride + step: distinct streams per seed
@@ -143,6 +145,9 @@ class BCConfig:
                                         "training time only: the policy never reads them, so its tier is unchanged), "
                                         "e.g. goal_pos_body: where the marked goal is, seen by a vision policy"})
     aux_weight: float = field(default=1.0, metadata={"help": "weight of the auxiliary loss (--aux-fields)"})
+    goal_keypoint_weight: float = field(default=0.0, metadata={"help": "train each camera's first keypoint to sit on "
+                                        "the skill's goal point in its image (train.goal_pixels; a training-time "
+                                        "label, needs --encoder-head keypoints), with this weight; 0: off"})
     save_every: int = field(default=1_000, metadata={"help": "checkpoint every N steps (and at the end)"})
     log_every: int = field(default=50, metadata={"help": "log scalars every N steps"})
     repo_id: str = field(default="local/aerobench", metadata={"help": "LeRobot repo id of the local dataset"})
@@ -187,6 +192,10 @@ class BCConfig:
             raise ValueError(f"--aux-fields must name task state fields ({', '.join(ALL_TASK_FIELDS)}), got {bad}")
         if self.aux_weight < 0:
             raise ValueError(f"--aux-weight must not be negative, got {self.aux_weight}")
+        if self.goal_keypoint_weight < 0 or (self.goal_keypoint_weight > 0 and (
+                not self.images or self.blind or self.encoder_head != "keypoints")):
+            raise ValueError(f"--goal-keypoint-weight needs a non-negative weight, --images without --blind and "
+                             f"--encoder-head keypoints, got {self.goal_keypoint_weight}")
         if self.phase_onset_weight < 1:
             raise ValueError(f"--phase-onset-weight must be at least 1, got {self.phase_onset_weight}")
         if not 0.0 < self.close_threshold < 1.0 or (self.close_threshold != 0.5 and self.gripper != "binary"):
@@ -293,7 +302,8 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
             raise ValueError(f"{root}'s {TASK_STATE_KEY} has another layout than this aerobench's task state "
                              f"(exported by an older aerobench); re-export it with aerobench generate")
         columns.append(TASK_STATE_KEY)
-    for option, needed in (("--skills", config.skills is not None), ("--aux-fields", bool(config.aux_fields))):
+    for option, needed in (("--skills", config.skills is not None), ("--aux-fields", bool(config.aux_fields)),
+                           ("--goal-keypoint-weight", config.goal_keypoint_weight > 0)):
         if needed and TASK_STATE_KEY not in columns:
             if TASK_STATE_KEY not in ds.features:
                 raise ValueError(f"{root} has no {TASK_STATE_KEY} for {option} (exported by an older aerobench); "
@@ -347,6 +357,14 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         images = camera_frames(root, config.cameras, config.image_size)
         every = len(data["index"]) == ds.meta.total_frames and bool((data["index"] == torch.arange(len(data["index"]))).all())
         data.update({cam: images[cam] if every else images[cam][data["index"]] for cam in config.cameras})  # no copy
+    if config.goal_keypoint_weight > 0:  # training labels only: where the goal is in each camera's image
+        platform = get_platform((ds.meta.robot_type or "").removeprefix("aerobench_"))
+        fields = task_state_fields(with_arm, version)
+        data["goal_xy"], visible, depth = goal_pixels(table[STATE_KEY][chosen], table[TASK_STATE_KEY][chosen], fields,
+                                                      platform, config.cameras)
+        data["goal_visible"] = torch.stack([unoccluded(visible[:, c], data["goal_xy"][:, c], depth[:, c],
+                                                       data[cam][:, 3], DEPTH_STEP_M)
+                                            for c, cam in enumerate(config.cameras)], 1)
     facts = {"episodes": len(episodes), "frames": len(chosen), "robot_type": ds.meta.robot_type,
              "total_episodes": ds.meta.total_episodes, "total_frames": ds.meta.total_frames, "inputs": inputs.as_dict()}
     if config.objects is not None:
@@ -355,6 +373,8 @@ def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
         facts["skills"] = list(config.skills)
     if config.aux_fields:
         facts["aux_fields"] = list(config.aux_fields)
+    if config.goal_keypoint_weight > 0:  # how many frames carry a label, per camera
+        facts["goal_in_view"] = dict(zip(config.cameras, data["goal_visible"].float().mean(0).round(decimals=3).tolist()))
     return data, facts
 
 
@@ -405,6 +425,20 @@ def phase_onset_weights(phase: torch.Tensor, segment: torch.Tensor, frames: int,
     for k in range(1, frames):
         recent[k:] |= switch[:-k] & (segment[k:] == segment[:-k])
     return torch.where(recent, torch.full((len(phase),), weight), torch.ones(len(phase)))
+
+
+def goal_keypoint_error(keypoints: dict[str, torch.Tensor], goal_xy: torch.Tensor, visible: torch.Tensor,
+                        offsets: list[torch.Tensor], pad: int, size: int) -> torch.Tensor:
+    """The mean squared distance between each camera's first keypoint and the goal's position in its (shifted) image,
+    over the frames where the goal is in view (0 when it is in none)."""
+    errors, count = [], 0
+    for c, kp in enumerate(keypoints.values()):  # in the cameras' order, as the offsets
+        k = kp.shape[1] // 2
+        target = shifted(goal_xy[:, c], offsets[c], pad, size)
+        seen = visible[:, c]
+        errors.append(((kp[:, [0, k]] - target).pow(2).sum(-1) * seen).sum())
+        count += int(seen.sum())
+    return torch.stack(errors).sum() / max(count, 1)
 
 
 def flight_mse(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
@@ -476,17 +510,19 @@ def _train_bc(config: BCConfig) -> Path:
     log = ScalarLog(out, start)
     bar = _progress(config, start)
     n = len(states)
-    t0, steps_done, loss_sum, aux_sum = time.perf_counter(), 0, 0.0, 0.0
+    t0, steps_done, loss_sum, aux_sum, kp_sum = time.perf_counter(), 0, 0.0, 0.0, 0.0
     path = checkpoint
     actor.train()
     for step in range(start + 1, config.steps + 1):
         generator = torch.Generator().manual_seed(config.seed * BATCH_SEED_STRIDE + step)
         idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
-        batch = {"state": states[idx], **{cam: random_shift(as_network_input(data[cam][idx]), config.shift, generator)
-                                          for cam in cameras}}
+        offsets: list[torch.Tensor] = []  # each camera's shift, for the goal keypoint labels
+        batch = {"state": states[idx], **{cam: random_shift(as_network_input(data[cam][idx]), config.shift, generator,
+                                                            offsets) for cam in cameras}}
         if inputs.instruction:
             batch["instruction"] = data["instruction"][idx]
-        features = actor.embed(batch)
+        keypoints = {} if config.goal_keypoint_weight > 0 else None
+        features = actor.embed(batch, keypoints)
         pred = actor.mlp(features)
         frame_weight = None if flight_weight is None else flight_weight[idx]
         if binary:  # MSE on the continuous dimensions, weighted cross-entropy on close
@@ -499,6 +535,11 @@ def _train_bc(config: BCConfig) -> Path:
             aux_error = actor.aux(features) - aux_targets[idx]
             loss = loss + config.aux_weight * aux_error.pow(2).mean()
             aux_sum += (aux_error.detach() * aux_std).pow(2).mean(0)  # squared error in the fields' own units
+        if keypoints is not None:
+            kp_error = goal_keypoint_error(keypoints, data["goal_xy"][idx], data["goal_visible"][idx], offsets,
+                                           config.shift, config.image_size)
+            loss = loss + config.goal_keypoint_weight * kp_error
+            kp_sum += kp_error.item()
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -511,9 +552,11 @@ def _train_bc(config: BCConfig) -> Path:
             log.add("charts/frames_per_s", steps_done * len(idx) / elapsed, step)
             if config.aux_fields:  # how well the inputs tell the targets, e.g. the goal's offset in metres
                 log.add("losses/aux_rmse", float((aux_sum / steps_done).mean().sqrt()), step)
+            if keypoints is not None:  # mean squared image-position error of the goal keypoints (image: -1 to 1)
+                log.add("losses/goal_keypoint", kp_sum / steps_done, step)
             if bar is not None:
                 bar.set_postfix_str(f"loss {loss_sum / steps_done:.4f}")
-            t0, steps_done, loss_sum, aux_sum = time.perf_counter(), 0, 0.0, 0.0
+            t0, steps_done, loss_sum, aux_sum, kp_sum = time.perf_counter(), 0, 0.0, 0.0, 0.0
         if step % config.save_every == 0 or step == config.steps:
             log.flush()  # the scalars up to a checkpoint are on disk before it
             path = save(step)

@@ -178,6 +178,33 @@ def test_auxiliary_targets_train_a_head_the_policy_never_reads(camera_dataset, t
         BCConfig(dataset="d", out="o", inputs="vision", images=True, aux_fields=("goal",))
 
 
+def test_goal_keypoints_train_the_camera_cnn_to_find_the_goal_in_its_images(camera_dataset, tmp_path):
+    """`--goal-keypoint-weight`: each camera's first keypoint learns the goal's image position (a label from the
+    recorded state, `train.goal_pixels`); the tier stays `vision` and the loss falls as it trains."""
+    from aerobench.train.bc import load_demos
+
+    config = dict(encoder_head="keypoints", goal_keypoint_weight=1.0, film=True, learning_rate=3e-3)
+    data, facts = load_demos(BCConfig(dataset=str(camera_dataset), out="o", images=True, inputs="vision",
+                                      outcomes=("T",), image_size=32, **config))
+    assert data["goal_xy"].shape == (len(data["action"]), 3, 2) and data["goal_visible"].any()
+    assert list(facts["goal_in_view"]) == ["drone_front", "drone_hand", "drone_own"]
+    ckpt = _vision(camera_dataset, tmp_path / "kp", steps=40, **config)
+    assert json.loads((ckpt / "config.json").read_text())["inputs_tier"] == "vision"
+    rows = [json.loads(line) for line in (tmp_path / "kp" / "scalars.jsonl").read_text().splitlines()]
+    error = [r["value"] for r in rows if r.get("tag") == "losses/goal_keypoint"]
+    assert len(error) == 40 and sum(error[-10:]) < sum(error[:10])
+    import aux_probe  # the bench reports the goal keypoint's error on a dataset beside the auxiliary head's
+
+    probed = _vision(camera_dataset, tmp_path / "kp_aux", aux_fields=("goal_pos_body",), **config)
+    report = aux_probe.main(["--checkpoint", str(probed), "--dataset", str(camera_dataset),
+                             "--train-dataset", str(camera_dataset)])
+    rows = [r for cam in report["goal_keypoint_px"].values() for r in cam]
+    assert rows and all(r["frames"] > 0 and r["median"] >= 0 for r in rows)
+    for bad in (dict(goal_keypoint_weight=1.0), dict(goal_keypoint_weight=1.0, encoder_head="keypoints", blind=True)):
+        with pytest.raises(ValueError, match="--goal-keypoint-weight needs"):
+            BCConfig(dataset="d", out="o", inputs="vision", images=True, **bad)
+
+
 def test_a_release_threshold_given_at_training_is_the_checkpoints_and_the_policy_acts_on_it(camera_dataset, tmp_path):
     from aerobench.policies.learned import BCPolicy
 
