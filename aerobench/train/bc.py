@@ -516,12 +516,12 @@ def _train_bc(config: BCConfig) -> Path:
     for step in range(start + 1, config.steps + 1):
         generator = torch.Generator().manual_seed(config.seed * BATCH_SEED_STRIDE + step)
         idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
-        offsets: list[torch.Tensor] = []  # each camera's shift, for the goal keypoint labels
+        keypoints = {} if config.goal_keypoint_weight > 0 else None
+        offsets = [] if keypoints is not None else None  # each camera's shift, for the goal keypoint labels
         batch = {"state": states[idx], **{cam: random_shift(as_network_input(data[cam][idx]), config.shift, generator,
                                                             offsets) for cam in cameras}}
         if inputs.instruction:
             batch["instruction"] = data["instruction"][idx]
-        keypoints = {} if config.goal_keypoint_weight > 0 else None
         features = actor.embed(batch, keypoints)
         pred = actor.mlp(features)
         frame_weight = None if flight_weight is None else flight_weight[idx]
