@@ -14,7 +14,7 @@ from .common import UserError, add_ray_options, parse_csv
 
 def add_eval(sub) -> None:
     p = sub.add_parser("eval", help="evaluate a policy per skill x object; writes records.jsonl and results.json")
-    p.add_argument("--policy", default=None, help="a registered policy: expert, random, bc, ppo, act, diffusion, pi0, pi05 "
+    p.add_argument("--policy", default=None, help="a registered policy: expert, random, bc, ppo, perceive_act, act, diffusion, pi0, pi05 "
                    "(required unless --policy-server gives --policy-type)")
     p.add_argument("--checkpoint", default=None,
                    help="checkpoint folder of a trained policy, or one per skill: pick=DIR,place=DIR")

@@ -10,6 +10,7 @@ from .common import Parser, UserError
 def add_train(sub) -> None:
     from ..train.bc import BCConfig
     from ..train.common import add_config_arguments
+    from ..train.perceive_act import PerceiveActConfig
     from ..train.ppo import PPOConfig
 
     p = sub.add_parser("train", help="train aerobench's own BC or PPO skill policies (checkpoints for --policy bc|ppo)")
@@ -20,6 +21,10 @@ def add_train(sub) -> None:
     ppo = algos.add_parser("ppo", help="PPO on a skill env, from scratch or from a BC checkpoint (--init-bc DIR)")
     add_config_arguments(ppo, PPOConfig, required=("setting", "skill", "out"))
     ppo.set_defaults(func=_run_train, config_cls=PPOConfig)
+    composed = algos.add_parser("perceive-act", help="a vision policy from a camera bc's auxiliary head (perception) "
+                                "and a state controller reading the fields it estimates (--policy perceive_act)")
+    add_config_arguments(composed, PerceiveActConfig, required=("perception", "controller", "out"))
+    composed.set_defaults(func=_run_compose, config_cls=PerceiveActConfig)
 
 
 def _run_train(args) -> int:
@@ -35,6 +40,18 @@ def _run_train(args) -> int:
     except ValueError as e:
         raise UserError(str(e)) from None
     print(f"checkpoint: {checkpoint}  (aerobench eval --policy {args.algorithm} --checkpoint {checkpoint} ...)")
+    return 0
+
+
+def _run_compose(args) -> int:
+    from ..train.common import config_from_args
+    from ..train.perceive_act import compose_perceive_act
+
+    try:
+        out = compose_perceive_act(config_from_args(args.config_cls, args))
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(f"wrote {out}  (aerobench eval --policy perceive_act --checkpoint {out} --inputs vision ...)")
     return 0
 
 

@@ -10,12 +10,18 @@ The network gets them as floats in [0, 1] (`as_network_input`), with random shif
 
 from __future__ import annotations
 
+import math
+from typing import TYPE_CHECKING
+
 import torch
 from torch.nn import functional as F
 
 DEPTH_STEP_M = 0.02  # one depth level: 255 levels cover 0-5.1 m (indoor scenes); farther reads 255
 IMAGE_CHANNELS = 4  # RGB + depth
 UINT8_MAX = 255
+
+if TYPE_CHECKING:
+    from ..envs.platforms import PlatformSpec
 
 
 def reduce_rgb(rgb: torch.Tensor, size: int) -> torch.Tensor:
@@ -68,3 +74,44 @@ def random_shift(images: torch.Tensor, pad: int, generator: torch.Generator,
     cropped = padded.gather(2, rows)
     cols = (dx[:, None] + torch.arange(w, device=images.device))[:, None, None, :].expand(n, c, h, w)
     return cropped.gather(3, cols)
+
+
+def camera_frames_in_body(platform: PlatformSpec, cameras: tuple[str, ...]) -> tuple[torch.Tensor, torch.Tensor,
+                                                                                          torch.Tensor]:
+    """Per camera: its eye `(C, 3)` and axes `(C, 3, 3)` (columns: forward, left, up, SAPIEN's camera frame) in the
+    airframe's body frame, and `tan(fov / 2)` `(C,)`. Cameras on another link than the airframe (the arm's wrist
+    camera) move with the joints and are refused."""
+    from mani_skill.utils import sapien_utils
+
+    mounts = {c.uid: c for c in platform.cameras}
+    unknown = [c for c in cameras if c not in mounts]
+    if unknown:
+        raise ValueError(f"the {platform.name} platform has no camera {', '.join(unknown)}")
+    moving = [c for c in cameras if mounts[c].link != "airframe"]
+    if moving:
+        raise ValueError(f"goal keypoints need cameras fixed to the airframe; {', '.join(moving)} rides on a joint "
+                         f"(train with --cameras naming airframe cameras, or without --goal-keypoint-weight)")
+    poses = [sapien_utils.look_at(mounts[c].eye_m, mounts[c].target_m).to_transformation_matrix()[0] for c in cameras]
+    eye = torch.stack([p[:3, 3] for p in poses]).double()
+    axes = torch.stack([p[:3, :3] for p in poses]).double()
+    tan_half = torch.tensor([math.tan(mounts[c].fov_rad / 2) for c in cameras], dtype=torch.float64)
+    return eye, axes, tan_half
+
+
+def back_project(xy: torch.Tensor, depth_m: torch.Tensor, eye: torch.Tensor, axes: torch.Tensor,
+                 tan_half: torch.Tensor) -> torch.Tensor:
+    """The point in the body frame `(N, 3)` seen at image position `xy` `(N, 2)` (x right, y down, -1 and +1 at the
+    image's edges) at `depth_m` `(N,)` along the axis of a camera at `eye` `(3,)` with `axes` `(3, 3)` and
+    `tan_half` (`camera_frames_in_body`): the inverse of projecting a point into the image (`train.goal_pixels`)."""
+    scale = depth_m * tan_half
+    in_camera = torch.stack([depth_m, -xy[:, 0] * scale, -xy[:, 1] * scale], -1)  # forward, left, up
+    return eye + in_camera @ axes.T
+
+
+def depth_at(images: torch.Tensor, xy: torch.Tensor) -> torch.Tensor:
+    """`(N,)` metres: the depth channel of network-input images `(N, 4, s, s)` (`as_network_input`) at image
+    positions `xy` `(N, 2)`, nearest pixel (0: no return)."""
+    size = images.shape[-1]
+    pixel = ((xy + 1) / 2 * size).long().clamp(0, size - 1)
+    level = images[torch.arange(len(xy), device=images.device), IMAGE_CHANNELS - 1, pixel[:, 1], pixel[:, 0]]
+    return level * UINT8_MAX * DEPTH_STEP_M

@@ -487,6 +487,8 @@ def _train_bc(config: BCConfig) -> Path:
     if config.aux_fields:  # auxiliary targets, standardized like the actions
         aux_mean, aux_std = data["aux"].mean(0), data["aux"].std(0, unbiased=False).clamp_min(STD_FLOOR)
         aux_targets = (data["aux"] - aux_mean) / aux_std
+    # the head's targets in their own units, for whatever reads the head (`policies.perceive_act`)
+    aux_scale = {"aux_mean": aux_mean.tolist(), "aux_std": aux_std.tolist()} if config.aux_fields else {}
 
     seed_everything(config.seed)
     actor = make_actor(model)
@@ -505,7 +507,7 @@ def _train_bc(config: BCConfig) -> Path:
     def save(step: int) -> Path:
         weights = {f"actor.{k}": v for k, v in actor.state_dict().items()}
         state = {"step": step, "optimizer": optimizer.state_dict()}
-        return save_checkpoint(out, meta, weights, normalizer.as_dict(), state, starts)
+        return save_checkpoint(out, meta, weights, {**normalizer.as_dict(), **aux_scale}, state, starts)
 
     log = ScalarLog(out, start)
     bar = _progress(config, start)

@@ -16,40 +16,17 @@ the image's edges. A point behind a camera or outside its view is not visible (o
 
 from __future__ import annotations
 
-import math
-
 import torch
 
 from ..envs.observations import STATE_FIELDS, field_slices
 from ..envs.platforms import PlatformSpec
 from ..envs.tasks import SKILLS
+from ..policies.camera_input import camera_frames_in_body
 
 _STATE = field_slices(STATE_FIELDS)
 # The goal point lies inside its object (a grasp point) or under it (a place goal under the held object): a surface
 # up to this much nearer than the point at its pixel is the object itself, not an occluder.
 OCCLUSION_MARGIN_M = 0.15
-
-
-def camera_frames_in_body(platform: PlatformSpec, cameras: tuple[str, ...]) -> tuple[torch.Tensor, torch.Tensor,
-                                                                                          torch.Tensor]:
-    """Per camera: its eye `(C, 3)` and axes `(C, 3, 3)` (columns: forward, left, up, SAPIEN's camera frame) in the
-    airframe's body frame, and `tan(fov / 2)` `(C,)`. Cameras on another link than the airframe (the arm's wrist
-    camera) move with the joints and are refused."""
-    from mani_skill.utils import sapien_utils
-
-    mounts = {c.uid: c for c in platform.cameras}
-    unknown = [c for c in cameras if c not in mounts]
-    if unknown:
-        raise ValueError(f"the {platform.name} platform has no camera {', '.join(unknown)}")
-    moving = [c for c in cameras if mounts[c].link != "airframe"]
-    if moving:
-        raise ValueError(f"goal keypoints need cameras fixed to the airframe; {', '.join(moving)} rides on a joint "
-                         f"(train with --cameras naming airframe cameras, or without --goal-keypoint-weight)")
-    poses = [sapien_utils.look_at(mounts[c].eye_m, mounts[c].target_m).to_transformation_matrix()[0] for c in cameras]
-    eye = torch.stack([p[:3, 3] for p in poses]).double()
-    axes = torch.stack([p[:3, :3] for p in poses]).double()
-    tan_half = torch.tensor([math.tan(mounts[c].fov_rad / 2) for c in cameras], dtype=torch.float64)
-    return eye, axes, tan_half
 
 
 def goal_point_world(state: torch.Tensor, task_state: torch.Tensor, task_fields, tcp_body: tuple[float, ...]

@@ -291,3 +291,53 @@ def test_a_calibrated_release_is_written_into_a_copy_of_the_checkpoint_and_acted
     assert BCPolicy(Env(), str(tmp_path / "calibrated")).close_threshold == summary["threshold"]
     with pytest.raises(ValueError, match="no checkpoint at"):
         calibrate_release(str(tmp_path / "none"), str(camera_dataset))
+
+
+def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(camera_dataset, tmp_path, monkeypatch):
+    """`aerobench train perceive-act`: a camera BC's auxiliary head (the perception) estimates the task-state fields a
+    privileged controller was trained on; the composed policy is `vision` tier, evaluates as one, and never reads the
+    env's task state. A controller reading a field the head does not estimate is refused with one line."""
+    from aerobench.envs.skills.base import AeroSkillEnv
+    from aerobench.eval.evaluate import EvalConfig, evaluate
+    from aerobench.policies.perceive_act import PerceiveActPolicy
+
+    perception = _vision(camera_dataset, tmp_path / "perception", aux_fields=("goal_pos_body", "is_grasp_confirmed"),
+                         encoder_head="keypoints", goal_keypoint_weight=1.0)
+    assert "aux_mean" in json.loads((perception / "normalization.json").read_text())  # the head's scale is saved
+    controller = train_bc(BCConfig(dataset=str(camera_dataset), out=str(tmp_path / "controller"), steps=2,
+                                   batch_size=8, outcomes=("T",), hidden=(16,), progress=False, inputs="privileged",
+                                   task_fields=("goal_pos_body", "is_grasp_confirmed"), ego_fields=("height",),
+                                   action_frame="heading"))
+    out = tmp_path / "pa"
+    proc = aerobench_here("train", "perceive-act", "--perception", str(perception), "--controller", str(controller),
+                          "--keypoint-camera", "drone_hand", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert PerceiveActPolicy.input_tier(str(out)) == "vision"
+    assert PerceiveActPolicy.needs_images(str(out))
+
+    acting, env_task_state, act = [], AeroSkillEnv.task_state, PerceiveActPolicy.act
+
+    def guarded_task_state(self):  # the recorder reads it between steps; the policy, while acting, must not
+        assert not acting, "perceive_act read the env's task state"
+        return env_task_state(self)
+
+    def counted_act(self, obs):
+        acting.append(True)
+        try:
+            return act(self, obs)
+        finally:
+            acting.pop()
+
+    with monkeypatch.context() as patch, torch_threads(1):
+        patch.setattr(AeroSkillEnv, "task_state", guarded_task_state)
+        patch.setattr(PerceiveActPolicy, "act", counted_act)
+        results = evaluate(EvalConfig(policy="perceive_act", setting="PrepareGroceries", skills=("place",),
+                                      objects=("sugar_box",), episodes_per_object=1, checkpoint=str(out), max_steps=3,
+                                      seed=11, inputs="vision"), tmp_path / "eval")
+    assert results["inputs"] == "vision" and results["cells"][0]["n"] == 1
+    wider = train_bc(BCConfig(dataset=str(camera_dataset), out=str(tmp_path / "wider"), steps=1, batch_size=8,
+                              outcomes=("T",), hidden=(16,), progress=False, task_fields=("goal_pos_body", "progress")))
+    proc = aerobench_here("train", "perceive-act", "--perception", str(perception), "--controller", str(wider),
+                          "--out", str(tmp_path / "refused"))
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "reads progress, which the perception does not estimate" in proc.stderr
