@@ -8,6 +8,7 @@ from pathlib import Path
 from aerobench.eval.evaluate import EvalConfig, evaluate
 from aerobench.policies.learned import load_actor
 from aerobench.policies.lerobot_policies import load_policy as load_lerobot_policy
+from aerobench.policies.perceive_act import CONTROLLER, PERCEPTION, read_perceive_act
 from aerobench.policies.registry import policy_training_starts
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -38,6 +39,12 @@ def test_learned_rows_name_committed_checkpoints_that_load():
         if policy in ("bc", "ppo"):
             config, _, _ = load_actor(folder)  # raises on a missing or mismatched weight file
             assert config["algorithm"] == policy
+        elif policy == "perceive_act":  # its two networks load, and the head estimates what the controller reads
+            _, composed = read_perceive_act(folder)
+            perception = load_actor(folder / PERCEPTION)[0]
+            controller = load_actor(folder / CONTROLLER)[0]
+            assert perception["model"]["aux_dim"] == len(composed["aux_mean"])
+            assert set(controller["model"]["inputs"]["task_fields"]) <= set(composed["fields"])
         else:  # a LeRobot checkpoint: its config, weights and processors load
             load_lerobot_policy(folder, policy)
         starts = policy_training_starts(policy, str(folder))  # carried with the folder, not looked up in outputs/
