@@ -28,16 +28,14 @@ import torch  # noqa: E402
 from aerobench.envs.observations import TASK_STATE_FIELDS  # noqa: E402
 from aerobench.policies.camera_input import as_network_input  # noqa: E402
 from aerobench.policies.learned import load_actor  # noqa: E402
-from aerobench.train.bc import BCConfig, load_demos  # noqa: E402
+from aerobench.train.bc import BCConfig, checkpoint_config, load_demos  # noqa: E402
 
 DISTANCE_BINS_M = (0.1, 0.3, 1.0)  # |goal_pos| edges: at the goal, the final approach, across the room
 KEYPOINT_PX = 64  # image units (-1 to 1) to pixels of the 128-px camera image
 
 
 def _config(checkpoint: Path, dataset: str) -> BCConfig:
-    train = json.loads((checkpoint / "config.json").read_text())["train"]
-    keep = {k: v for k, v in train.items() if k in BCConfig.__dataclass_fields__ and k not in ("dataset", "out")}
-    return BCConfig(**{**keep, "dataset": dataset, "out": tempfile.mkdtemp(), "progress": False})
+    return checkpoint_config(checkpoint, dataset=dataset, out=tempfile.mkdtemp(), progress=False)
 
 
 def main(argv=None) -> dict:

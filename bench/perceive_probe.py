@@ -28,7 +28,7 @@ from aerobench.envs.platforms import get_platform  # noqa: E402
 from aerobench.policies.camera_input import as_network_input, camera_frames_in_body  # noqa: E402
 from aerobench.policies.learned import load_actor  # noqa: E402
 from aerobench.policies.perceive_act import PERCEPTION, KeypointGoal, keypoint_goal_offset, read_perceive_act  # noqa: E402,E501
-from aerobench.train.bc import BCConfig, load_demos  # noqa: E402
+from aerobench.train.bc import checkpoint_config, load_demos  # noqa: E402
 
 DISTANCE_BINS_M = (0.1, 0.2, 0.3, 0.6, 1.0)
 _STATE = field_slices(STATE_FIELDS)
@@ -56,12 +56,11 @@ def main(argv=None) -> dict:
     folder, config = read_perceive_act(args.checkpoint)
     perception = folder / PERCEPTION
     train = json.loads((perception / "config.json").read_text())["train"]
-    keep = {k: v for k, v in train.items() if k in BCConfig.__dataclass_fields__ and k not in ("dataset", "out")}
-    base = {**keep, "dataset": args.dataset, "out": tempfile.mkdtemp(), "progress": False}
-    data, facts = load_demos(BCConfig(**{**base, "aux_fields": ("goal_pos_body", "goal_pos")}))
-    raw = load_demos(BCConfig(**{**base, "blind": True, "goal_keypoint_weight": 0.0, "aux_fields": (),
-                                 "ego_fields": (), "state_fields": ("orientation_6d",), "history": 1,
-                                 "instruction": False, "film": False}))[0]["state"]
+    base = {"dataset": args.dataset, "out": tempfile.mkdtemp(), "progress": False}
+    data, facts = load_demos(checkpoint_config(perception, **base, aux_fields=("goal_pos_body", "goal_pos")))
+    raw = load_demos(checkpoint_config(perception, **base, blind=True, goal_keypoint_weight=0.0, aux_fields=(),
+                                       ego_fields=(), state_fields=("orientation_6d",), history=1, instruction=False,
+                                       film=False))[0]["state"]
     state = torch.zeros(len(raw), sum(n for _, n in STATE_FIELDS))
     state[:, _STATE["orientation_6d"]] = raw
     truth, distance = data["aux"][:, :3], data["aux"][:, 3:].norm(dim=-1)

@@ -100,9 +100,13 @@ def run(argv: list[str]) -> int:
         if unknown:
             print(f"perception_noise.py: unknown task-state fields {unknown}", file=sys.stderr)
             return 2
-    install(sigma, seed=int(argv[argv.index("--seed") + 1]) if "--seed" in argv[:-1] else 0, blank=blank,
-            sigma_z_m=sigma_z)
-    code = main(["eval", *argv])
+    plain = observer.ActorObserver.observe
+    try:
+        install(sigma, seed=int(argv[argv.index("--seed") + 1]) if "--seed" in argv[:-1] else 0, blank=blank,
+                sigma_z_m=sigma_z)
+        code = main(["eval", *argv])
+    finally:  # the process (a test's, say) acts as before afterwards
+        observer.ActorObserver.observe = plain
     out = Path(argv[argv.index("--out") + 1]) / "results.json" if "--out" in argv[:-1] else None
     if code == 0 and out is not None and out.is_file():
         results = json.loads(out.read_text())

@@ -35,7 +35,7 @@ import torch  # noqa: E402
 
 from aerobench.policies.camera_input import as_network_input  # noqa: E402
 from aerobench.policies.learned import CONFIG_FILE, is_close, load_actor  # noqa: E402
-from aerobench.train.bc import BCConfig, load_demos  # noqa: E402
+from aerobench.train.bc import checkpoint_config, load_demos  # noqa: E402
 
 ROUND = 1000  # thresholds are written rounded down to 0.001
 DROP_M = 0.02  # letting go with the object's bottom higher than this above the goal counts as letting go in the air
@@ -125,10 +125,8 @@ def gripper_probabilities(checkpoint: Path, dataset: str, outcomes: tuple[str, .
     config, actor, normalizer = load_actor(checkpoint)
     if config["model"]["gripper"] != "binary":
         raise ValueError(f"{checkpoint} has a continuous gripper: there is no release threshold to calibrate")
-    train = config["train"]
-    keep = {k: v for k, v in train.items() if k in BCConfig.__dataclass_fields__ and k not in ("dataset", "out")}
-    bc = BCConfig(**{**keep, "dataset": dataset, "out": str(checkpoint), "progress": False, "outcomes": outcomes,
-                     "skills": None, "aux_fields": ("progress", "goal_pos")})
+    bc = checkpoint_config(checkpoint, dataset=dataset, out=str(checkpoint), progress=False, outcomes=outcomes,
+                           skills=None, aux_fields=("progress", "goal_pos"))
     data, _ = load_demos(bc)
     cameras = bc.cameras if bc.images and not bc.blind else ()
     states = normalizer.state(data["state"])

@@ -49,6 +49,13 @@ def yaw_of(state: torch.Tensor) -> torch.Tensor:
     return torch.atan2(r[..., 1], r[..., 0])
 
 
+def body_rotation(state: torch.Tensor) -> torch.Tensor:
+    """`(..., 3, 3)` the airframe's rotation (body to env frame) of proprio states `(..., S)`, from the state's two
+    columns of R (`orientation_6d`)."""
+    x_axis, y_axis = state[..., _STATE["orientation_6d"]].split(3, -1)
+    return torch.stack([x_axis, y_axis, torch.linalg.cross(x_axis, y_axis)], -1)
+
+
 def ego_features(state: torch.Tensor, start_state: torch.Tensor | None, names: tuple[str, ...]) -> torch.Tensor:
     """`(T, F)` the fields `names` (of `EGO_FIELDS`, in that order of `names`) from proprio states `(T, S)`;
     `start_state` `(T, S)`: each row's episode (or stage) start, needed by `yaw_since_start`."""

@@ -26,7 +26,7 @@ import torch
 from .. import tiers
 from ..envs.observations import STATE_FIELDS, field_slices, heading_frame, task_state_fields
 from .camera_input import back_project, camera_frames_in_body, depth_at
-from .egocentric import yaw_of
+from .egocentric import body_rotation, yaw_of
 from .learned import BCPolicy, PPOPolicy, model_features, read_config, resolve_checkpoint
 from .provenance import TrainingStarts, read_starts
 from .registry import register_policy
@@ -61,9 +61,7 @@ def keypoint_goal_offset(images: torch.Tensor, keypoints: torch.Tensor, state: t
     k = keypoints.shape[1] // 2
     xy = torch.stack([keypoints[:, 0], keypoints[:, k]], -1)
     depth = depth_at(images, xy)
-    x_axis, y_axis = state[:, _STATE["orientation_6d"]].split(3, -1)
-    rotation = torch.stack([x_axis, y_axis, torch.linalg.cross(x_axis, y_axis)], -1)  # body -> env
-    offset = rotation @ (back_project(xy, depth, eye, axes, tan_half) - tcp_body)[..., None]
+    offset = body_rotation(state) @ (back_project(xy, depth, eye, axes, tan_half) - tcp_body)[..., None]
     return heading_frame(offset[..., 0], yaw_of(state)), depth
 
 
@@ -125,9 +123,7 @@ class StaticGoalFilter:
         if self.fresh is None or len(self.fresh) != n:
             self.fresh = torch.ones(n, dtype=torch.bool, device=offset.device)
             self.goal = offset.new_zeros(n, 3)
-        x_axis, y_axis = state[:, _STATE["orientation_6d"]].split(3, -1)
-        rotation = torch.stack([x_axis, y_axis, torch.linalg.cross(x_axis, y_axis)], -1)
-        tcp = state[:, _STATE["position"]] + (rotation @ self.tcp_body[:, None])[..., 0]
+        tcp = state[:, _STATE["position"]] + (body_rotation(state) @ self.tcp_body[:, None])[..., 0]
         yaw = yaw_of(state)
         world = tcp + heading_frame(offset, -yaw)  # the heading frame turned back by the yaw: the env frame
         restart = self.fresh | grasped

@@ -273,6 +273,13 @@ def within_budget(episodes: list[int], frame_episode: torch.Tensor, max_transiti
     return kept
 
 
+def checkpoint_config(checkpoint: Path, **overrides) -> BCConfig:
+    """The `BCConfig` a bc checkpoint was trained with (its config's `train`), with `overrides` (e.g. another dataset
+    to feed it, as the probes and the release calibration do)."""
+    train = read_config(Path(checkpoint))["train"]
+    return BCConfig(**{**{k: v for k, v in train.items() if k in BCConfig.__dataclass_fields__}, **overrides})
+
+
 def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
     """All frames of the selected episodes in memory: `state` (the selected inputs with history), `action` (in the
     policy's action frame), the instruction's word ids, and (image variant) one uint8 `(T, 4, s, s)` tensor per camera;

@@ -22,6 +22,7 @@ from ..envs.observations import STATE_FIELDS, field_slices
 from ..envs.platforms import PlatformSpec
 from ..envs.tasks import SKILLS
 from ..policies.camera_input import camera_frames_in_body
+from ..policies.egocentric import body_rotation
 
 _STATE = field_slices(STATE_FIELDS)
 # The goal point lies inside its object (a grasp point) or under it (a place goal under the held object): a surface
@@ -35,8 +36,7 @@ def goal_point_world(state: torch.Tensor, task_state: torch.Tensor, task_fields,
     env), from the proprio `state` `(N, 19+)` and the task state `(N, K)` in the layout `task_fields`."""
     state, task_state = state.double(), task_state.double()
     fields = field_slices(task_fields)
-    x_axis, y_axis = state[:, _STATE["orientation_6d"]].split(3, -1)
-    rotation = torch.stack([x_axis, y_axis, torch.linalg.cross(x_axis, y_axis)], -1)
+    rotation = body_rotation(state)
     centre = state[:, _STATE["position"]]
     tcp = centre + rotation @ torch.tensor(tcp_body, dtype=torch.float64)
     goal = task_state[:, fields["goal_pos"]]

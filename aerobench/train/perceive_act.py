@@ -48,16 +48,14 @@ def head_scale(perception: Path, train_dataset: str | None = None) -> tuple[list
     saved = json.loads((perception / "normalization.json").read_text())
     if "aux_mean" in saved:
         return saved["aux_mean"], saved["aux_std"]
-    from .bc import BCConfig, load_demos
+    from .bc import checkpoint_config, load_demos
 
-    train = read_config(perception)["train"]
-    dataset = train_dataset or train["dataset"]
+    dataset = train_dataset or read_config(perception)["train"]["dataset"]
     if not Path(dataset, "meta", "info.json").is_file():
         raise ValueError(f"{perception} predates the saved auxiliary scale and its training dataset {dataset} is not "
                          f"here; give it with --train-dataset")
-    keep = {k: v for k, v in train.items() if k in BCConfig.__dataclass_fields__ and k not in ("dataset", "out")}
-    config = BCConfig(**{**keep, "dataset": dataset, "out": str(perception), "progress": False, "blind": True,
-                         "goal_keypoint_weight": 0.0})  # blind: the targets only, no camera frame is decoded
+    config = checkpoint_config(perception, dataset=dataset, out=str(perception), progress=False, blind=True,
+                               goal_keypoint_weight=0.0)  # blind: the targets only, no camera frame is decoded
     aux = load_demos(config)[0]["aux"]
     return aux.mean(0).tolist(), aux.std(0, unbiased=False).clamp_min(STD_FLOOR).tolist()
 

@@ -3,6 +3,7 @@ its blind control renders nothing, and a feature outside the tier is refused at 
 
 import json
 import math
+import shutil
 import sys
 from pathlib import Path
 
@@ -300,6 +301,7 @@ def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(c
     from aerobench.envs.skills.base import AeroSkillEnv
     from aerobench.eval.evaluate import EvalConfig, evaluate
     from aerobench.policies.perceive_act import PerceiveActPolicy
+    from aerobench.train.perceive_act import head_scale
 
     perception = _vision(camera_dataset, tmp_path / "perception", aux_fields=("goal_pos_body", "is_grasp_confirmed"),
                          encoder_head="keypoints", goal_keypoint_weight=1.0)
@@ -314,6 +316,12 @@ def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(c
     assert proc.returncode == 0, proc.stderr
     assert PerceiveActPolicy.input_tier(str(out)) == "vision"
     assert PerceiveActPolicy.needs_images(str(out))
+    older = tmp_path / "older_perception"  # a checkpoint saved before the head's scale was: recomputed from its data
+    shutil.copytree(perception, older)
+    saved = json.loads((older / "normalization.json").read_text())
+    (older / "normalization.json").write_text(json.dumps({k: v for k, v in saved.items() if not k.startswith("aux_")}))
+    mean, std = head_scale(older, str(camera_dataset))
+    assert np.allclose(mean, saved["aux_mean"], atol=1e-5) and np.allclose(std, saved["aux_std"], atol=1e-5)
 
     acting, env_task_state, act = [], AeroSkillEnv.task_state, PerceiveActPolicy.act
 
@@ -341,3 +349,31 @@ def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(c
                           "--out", str(tmp_path / "refused"))
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
     assert "reads progress, which the perception does not estimate" in proc.stderr
+    import perceive_probe  # the bench that measures the estimate against the task state, per distance
+
+    report = perceive_probe.main(["--checkpoint", str(out), "--dataset", str(camera_dataset)])
+    assert report["head"] and report["fused"] and set(report["keypoint"]) == {"drone_front", "drone_hand", "drone_own"}
+    assert all(r["frames"] > 0 and r["rms_m"] >= 0 for r in report["head"])
+
+
+def test_perception_noise_offsets_what_the_policy_reads_and_marks_its_results(camera_dataset, tmp_path):
+    """`bench/perception_noise.py`: a diagnostic evaluation whose policy reads `goal_pos_body` off by a per-episode
+    offset (and chosen fields as 0); its results say so, and the process acts as before afterwards."""
+    import perception_noise
+
+    from aerobench.policies.observer import ActorObserver
+
+    controller = train_bc(BCConfig(dataset=str(camera_dataset), out=str(tmp_path / "c"), steps=1, batch_size=8,
+                                   outcomes=("T",), hidden=(16,), progress=False,
+                                   task_fields=("goal_pos_body", "heading_error")))
+    plain = ActorObserver.observe
+    with torch_threads(1):
+        code = perception_noise.run(["--sigma-m", "0.02", "--blank", "heading_error", "--policy", "bc",
+                                     "--checkpoint", str(controller), "--setting", "PrepareGroceries", "--skills",
+                                     "place", "--objects", "sugar_box", "--episodes-per-object", "1", "--max-steps",
+                                     "3", "--seed", "11", "--out", str(tmp_path / "e")])
+    assert code == 0 and ActorObserver.observe is plain
+    provenance = json.loads((tmp_path / "e" / "results.json").read_text())["provenance"]
+    assert "sigma 0.02 m" in provenance["diagnostic"] and "heading_error read as 0" in provenance["diagnostic"]
+    assert provenance["command"].startswith("python bench/perception_noise.py --sigma-m 0.02 --blank heading_error")
+    assert perception_noise.run(["--policy", "bc"]) == 2  # no --sigma-m: refused
