@@ -227,19 +227,15 @@ class PerceiveActPolicy:
         actor = self.perception.actor
         inputs, keypoints = self.perception.observe(obs), {}
         values = actor.aux(actor.embed(inputs, keypoints if self.keypoints else None)) * self.std + self.mean
-        values = torch.where(self.flags, (values > 0.5).to(values.dtype), values)
+        values = torch.where(self.flags, (values > 0.5).to(values.dtype), values)  # a new tensor: written below
+        state = obs["agent"]["state"].to(values.device).float()
+        goal = slice(self.goal_column, self.goal_column + 3) if self.goal_column is not None else None
         if self.keypoints is not None:
-            goal = values[:, self.goal_column:self.goal_column + 3]
-            values = values.clone()
-            values[:, self.goal_column:self.goal_column + 2] = self.keypoints.fuse(
-                goal, inputs, keypoints, obs["agent"]["state"].to(values.device).float())
+            values[:, goal.start:goal.start + 2] = self.keypoints.fuse(values[:, goal], inputs, keypoints, state)
         if self.filter is not None:
             grasped = values[:, self.grasp_column] > 0.5 if self.grasp_column is not None else \
                 torch.zeros(len(values), dtype=torch.bool, device=values.device)
-            values = values.clone()
-            values[:, self.goal_column:self.goal_column + 3] = self.filter(
-                values[:, self.goal_column:self.goal_column + 3], obs["agent"]["state"].to(values.device).float(),
-                grasped)
+            values[:, goal] = self.filter(values[:, goal], state, grasped)
         out = values.new_zeros(len(values), self.width)
         out[:, self.columns] = values
         return out
