@@ -1,12 +1,13 @@
 """How well a `perceive_act` policy's perception says where the goal is, on demonstrations it never saw
 (docs/experiments.md, "Perceive, then act"): the auxiliary head's estimate of `goal_pos_body` beside each airframe
 camera's goal keypoint back-projected through the depth under it (`policies.perceive_act.keypoint_goal_offset`),
-as the horizontal error (RMS and median, metres) by the distance to the goal.
+as the horizontal error (RMS and median, metres) by the distance to the goal; the same for the keypoints whose
+attention is concentrated (spread under `--spread-max`: where the camera is sure it sees the goal) with how many
+frames they cover, and for what the policy acts on (`fused`, without its goal memory).
 
-    python bench/perceive_probe.py --checkpoint PERCEIVE_ACT_FOLDER --dataset HELD_OUT [--out FILE.json]
+    python bench/perceive_probe.py --checkpoint PERCEIVE_ACT_FOLDER --dataset HELD_OUT [--spread-max 0.3] [--out F]
 
-The frames are fed as training fed them (`train.bc.load_demos`: history, egocentric fields, instruction, cameras at
-the perception's size, no augmentation).
+The frames are fed as training fed them (`train.perceive_act.perception_frames`).
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 os.environ.setdefault("MS_SKIP_ASSET_DOWNLOAD_PROMPT", "1")
@@ -23,15 +23,14 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 import torch  # noqa: E402
 
-from aerobench.envs.observations import STATE_FIELDS, field_slices, task_state_fields  # noqa: E402
+from aerobench.envs.observations import task_state_fields  # noqa: E402
 from aerobench.envs.platforms import get_platform  # noqa: E402
 from aerobench.policies.camera_input import as_network_input, camera_frames_in_body  # noqa: E402
 from aerobench.policies.learned import load_actor  # noqa: E402
 from aerobench.policies.perceive_act import PERCEPTION, KeypointGoal, keypoint_goal_offset, read_perceive_act  # noqa: E402,E501
-from aerobench.train.bc import checkpoint_config, load_demos  # noqa: E402
+from aerobench.train.perceive_act import perception_frames  # noqa: E402
 
 DISTANCE_BINS_M = (0.1, 0.2, 0.3, 0.6, 1.0)
-_STATE = field_slices(STATE_FIELDS)
 
 
 def _errors(estimate: torch.Tensor, truth: torch.Tensor, distance: torch.Tensor, valid: torch.Tensor) -> list[dict]:
@@ -51,18 +50,14 @@ def main(argv=None) -> dict:
     p.add_argument("--checkpoint", required=True, help="an aerobench train perceive-act folder")
     p.add_argument("--dataset", required=True, help="held-out demonstrations (a camera dataset)")
     p.add_argument("--batch", type=int, default=256)
+    p.add_argument("--spread-max", type=float, default=None,
+                   help="the keypoint spread gate to report (default: the policy's, else 0.3)")
     p.add_argument("--out", help="write the report here (JSON)")
     args = p.parse_args(argv)
     folder, config = read_perceive_act(args.checkpoint)
     perception = folder / PERCEPTION
     train = json.loads((perception / "config.json").read_text())["train"]
-    base = {"dataset": args.dataset, "out": tempfile.mkdtemp(), "progress": False}
-    data, facts = load_demos(checkpoint_config(perception, **base, aux_fields=("goal_pos_body", "goal_pos")))
-    raw = load_demos(checkpoint_config(perception, **base, blind=True, goal_keypoint_weight=0.0, aux_fields=(),
-                                       ego_fields=(), state_fields=("orientation_6d",), history=1, instruction=False,
-                                       film=False))[0]["state"]
-    state = torch.zeros(len(raw), sum(n for _, n in STATE_FIELDS))
-    state[:, _STATE["orientation_6d"]] = raw
+    data, facts, state = perception_frames(perception, args.dataset)
     truth, distance = data["aux"][:, :3], data["aux"][:, 3:].norm(dim=-1)
     _, actor, normalizer = load_actor(perception)
     fields = config["fields"]
@@ -73,10 +68,9 @@ def main(argv=None) -> dict:
     cameras = [c for c in train["cameras"] if next(m for m in platform.cameras if m.uid == c).link == "airframe"]
     eye, axes, tan_half = camera_frames_in_body(platform, tuple(cameras))
     tcp = torch.tensor(platform.grasp_point_m)
-    fusion = None if not config.get("keypoint_camera") else KeypointGoal(
-        platform, config["keypoint_camera"], tuple(config.get("far_keypoint_cameras") or ()),
-        float(config["keypoint_range_m"]), float(config.get("keypoint_gate_m", 0.2)))
-    head, seen, fused = [], {c: ([], []) for c in cameras}, []
+    fusion = KeypointGoal.from_config(platform, config)
+    spread_max = args.spread_max or config.get("keypoint_spread_max") or 0.3
+    head, seen, sure, fused = [], {c: ([], []) for c in cameras}, {c: [] for c in cameras}, []
     states = normalizer.state(data["state"])
     with torch.no_grad():
         for i in range(0, len(states), args.batch):
@@ -85,18 +79,23 @@ def main(argv=None) -> dict:
             if "instruction" in data:
                 batch["instruction"] = data["instruction"][i:i + args.batch]
             keypoints: dict[str, torch.Tensor] = {}
-            head.append((actor.aux(actor.embed(batch, keypoints)) * std + mean)[:, column:column + 3])
+            spreads: dict[str, torch.Tensor] = {}
+            head.append((actor.aux(actor.embed(batch, keypoints, spreads)) * std + mean)[:, column:column + 3])
             if fusion is not None:  # what the policy acts on
-                fused.append(fusion.fuse(head[-1], batch, keypoints, state[i:i + args.batch]))
+                fused.append(fusion.fuse(head[-1], batch, keypoints, state[i:i + args.batch], spreads)[0])
             for j, c in enumerate(cameras):
                 offset, depth = keypoint_goal_offset(batch[c], keypoints[c], state[i:i + args.batch], eye[j].float(),
                                                      axes[j].float(), float(tan_half[j]), tcp)
                 seen[c][0].append(offset)
                 seen[c][1].append(depth)
+                sure[c].append(spreads[c][:, 0] < spread_max)
     every = torch.ones(len(truth), dtype=torch.bool)
     report = {"checkpoint": str(folder), "dataset": args.dataset, "frames": len(truth),
               "head": _errors(torch.cat(head), truth, distance, every),
-              "keypoint": {c: _errors(torch.cat(o), truth, distance, torch.cat(d) > 0) for c, (o, d) in seen.items()}}
+              "keypoint": {c: _errors(torch.cat(o), truth, distance, torch.cat(d) > 0) for c, (o, d) in seen.items()},
+              "spread_max": spread_max,
+              "keypoint_concentrated": {c: _errors(torch.cat(o), truth, distance, (torch.cat(d) > 0) &
+                                                   torch.cat(sure[c])) for c, (o, d) in seen.items()}}
     if fused:
         report["fused"] = _errors(torch.cat(fused), truth, distance, every)
     if "goal_visible" in data:  # the same where the goal is in the camera's view (the label's frames)

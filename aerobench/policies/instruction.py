@@ -30,3 +30,16 @@ def instruction_tokens(texts: list[str]) -> torch.Tensor:
         ids = word_ids(text)
         out[i, : len(ids)] = torch.tensor(ids, dtype=torch.long)
     return out
+
+
+def named_phrase(tokens: torch.Tensor, phrases: list[str]) -> torch.Tensor:
+    """`(N,)` which of `phrases` each instruction `(N, W)` (word ids) names: the longest one all of whose words it
+    holds ("tomato soup can" over "can"), -1 where none."""
+    out = torch.full((len(tokens),), -1, dtype=torch.long, device=tokens.device)
+    longest = torch.zeros(len(tokens), dtype=torch.long, device=tokens.device)
+    for i, phrase in enumerate(phrases):
+        ids = torch.tensor(word_ids(phrase), dtype=torch.long, device=tokens.device)
+        named = (tokens[:, :, None] == ids).any(1).all(-1) & (len(ids) > longest)
+        out = torch.where(named, i, out)
+        longest = torch.where(named, len(ids), longest)
+    return out

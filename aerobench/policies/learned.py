@@ -93,12 +93,19 @@ class SpatialSoftmax(nn.Module):
     """Each feature map as the expected image position of its activation (Levine et al. 2016; robomimic's and
     Diffusion Policy's image head): `(N, C, h, w)` -> `(N, 2C)` keypoints in [-1, 1], where a thing is in the image."""
 
-    def forward(self, features: torch.Tensor) -> torch.Tensor:
+    def forward(self, features: torch.Tensor, spread_out: list | None = None) -> torch.Tensor:
+        """`spread_out`, if given, receives how concentrated each map's attention is `(N, C)`: its RMS distance from
+        the keypoint (image half-widths), small where the map found its thing, about 0.9 for a flat map."""
         n, c, h, w = features.shape
         attention = torch.softmax(features.flatten(2), -1).view(n, c, h, w)
         ys = torch.linspace(-1.0, 1.0, h, device=features.device)
         xs = torch.linspace(-1.0, 1.0, w, device=features.device)
-        return torch.cat([(attention.sum(2) * xs).sum(-1), (attention.sum(3) * ys).sum(-1)], -1)
+        along_x, along_y = attention.sum(2), attention.sum(3)
+        x, y = (along_x * xs).sum(-1), (along_y * ys).sum(-1)
+        if spread_out is not None:
+            variance = (along_x * xs**2).sum(-1) - x**2 + (along_y * ys**2).sum(-1) - y**2
+            spread_out.append(variance.clamp_min(0.0).sqrt())
+        return torch.cat([x, y], -1)
 
 
 class CameraEncoder(nn.Module):
@@ -122,10 +129,11 @@ class CameraEncoder(nn.Module):
             self.head = nn.Sequential(nn.Flatten(), nn.Linear(c_in * side * side, feature_dim), nn.ReLU())
 
     def forward(self, images: torch.Tensor, film: torch.Tensor | None = None,
-                keypoints_out: list | None = None) -> torch.Tensor:
+                keypoints_out: list | None = None, spread_out: list | None = None) -> torch.Tensor:
         """`film` `(N, 2 * sum(channels))`: a scale and a shift per channel of each convolution (FiLM, Perez et al.
         2018), applied before its ReLU, so the instruction decides which things the maps respond to.
-        `keypoints_out` (keypoint head only) receives the keypoints `(N, 2K)` (x of each map, then y of each)."""
+        `keypoints_out` (keypoint head only) receives the keypoints `(N, 2K)` (x of each map, then y of each), and
+        `spread_out` (with it) their attention's spread `(N, K)` (`SpatialSoftmax`)."""
         if film is None:
             x = self.conv(images)
         else:
@@ -141,7 +149,7 @@ class CameraEncoder(nn.Module):
             return self.head(x)
         if not isinstance(self.head[1], SpatialSoftmax):
             raise ValueError("keypoints need the keypoint head (--encoder-head keypoints)")
-        keypoints = self.head[1](self.head[0](x))  # the head is maps -> keypoints -> features, one Sequential
+        keypoints = self.head[1](self.head[0](x), spread_out)  # the head is maps -> keypoints -> features
         keypoints_out.append(keypoints)
         return self.head[3](self.head[2](keypoints))
 
@@ -184,9 +192,11 @@ class Trunk(nn.Module):
     def forward(self, inputs: dict[str, torch.Tensor]) -> torch.Tensor:
         return self.mlp(self.embed(inputs))
 
-    def embed(self, inputs: dict[str, torch.Tensor], keypoints: dict[str, torch.Tensor] | None = None) -> torch.Tensor:
+    def embed(self, inputs: dict[str, torch.Tensor], keypoints: dict[str, torch.Tensor] | None = None,
+              spreads: dict[str, torch.Tensor] | None = None) -> torch.Tensor:
         """The features the MLP reads: the state, each camera's features and the instruction's embedding.
-        `keypoints`, if given, receives each camera's encoder keypoints `(N, 2K)` (keypoint head only)."""
+        `keypoints`, if given, receives each camera's encoder keypoints `(N, 2K)` (keypoint head only), and `spreads`
+        (with it) how concentrated each keypoint's attention is `(N, K)`."""
         parts = [inputs["state"]]
         n = inputs["state"].shape[0]
         words = self.words(inputs["instruction"]) if self.instruction_dim else None
@@ -195,13 +205,16 @@ class Trunk(nn.Module):
             shape = (n, IMAGE_CHANNELS, self.image_size, self.image_size)
             images = [inputs[c] if not self.blind else inputs["state"].new_zeros(shape) for c in self.cameras]
             found: list[torch.Tensor] | None = None if keypoints is None else []
+            spread: list[torch.Tensor] | None = None if keypoints is None or spreads is None else []
             if self.separate:
-                parts += [self.encoders[c](x, film, found) for c, x in zip(self.cameras, images)]
+                parts += [self.encoders[c](x, film, found, spread) for c, x in zip(self.cameras, images)]
             else:  # one encoder pass for all cameras; each camera's features keep their slot
                 batch_film = None if film is None else film.repeat(len(self.cameras), 1)
-                parts += list(self.encoder(torch.cat(images, 0), batch_film, found).split(n, 0))
+                parts += list(self.encoder(torch.cat(images, 0), batch_film, found, spread).split(n, 0))
             if keypoints is not None:
                 keypoints.update(zip(self.cameras, found if self.separate else found[0].split(n, 0)))
+            if spread is not None:
+                spreads.update(zip(self.cameras, spread if self.separate else spread[0].split(n, 0)))
         if words is not None:
             parts.append(words)
         return torch.cat(parts, -1)

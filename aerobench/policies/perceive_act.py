@@ -25,10 +25,12 @@ import torch
 
 from .. import tiers
 from ..envs.observations import STATE_FIELDS, field_slices, heading_frame, task_state_fields
+from ..envs.tasks import object_phrase
 from .camera_input import back_project, camera_frames_in_body, depth_at
 from .egocentric import body_rotation, yaw_of
+from .instruction import named_phrase
 from .learned import BCPolicy, PPOPolicy, model_features, read_config, resolve_checkpoint
-from .provenance import TrainingStarts, read_starts
+from .provenance import STARTS_FILE, TrainingStarts, read_starts
 from .registry import register_policy
 
 PERCEIVE_ACT_FORMAT = "aerobench-perceive-act-v1"
@@ -67,69 +69,119 @@ def keypoint_goal_offset(images: torch.Tensor, keypoints: torch.Tensor, state: t
 
 class KeypointGoal:
     """The goal's horizontal offset from the cameras' goal keypoints where they see it, else the head's: within
-    `near_m` of the goal (by the head) the `near` camera's (the hand camera, under the jaws); farther, the first of the
-    `far` cameras whose keypoint puts the goal within `gate_m` of the head's estimate (a keypoint of a camera that does
-    not see the goal lands on whatever it does see, usually far from where the head puts the goal). The head is linear
-    in features that hold image positions, so it cannot multiply them by depth; this does it exactly."""
+    `near_m` of the goal (by the head) the `near` camera's (the hand camera, under the jaws); otherwise the first
+    camera (`near`, then the `far` ones) that sees the goal. A keypoint of a camera that does not see the goal lands on
+    whatever it does see, so "sees" is gated: by the keypoint's attention spread under `spread_max` (a concentrated
+    map found its thing; `SpatialSoftmax`) and/or, for the far cameras, by the keypoint putting the goal within
+    `gate_m` of the head's estimate (None: no such gate). The head is linear in features that hold image positions, so
+    it cannot multiply them by depth; this does it exactly.
 
-    def __init__(self, platform, near: str, far: tuple[str, ...] = (), near_m: float = 0.3, gate_m: float = 0.2,
-                 device: torch.device | str = "cpu"):
-        self.near, self.far, self.near_m, self.gate_m = near, tuple(far), near_m, gate_m
+    The vertical offset, too, where the near camera sees the goal within `depth_z_range_m`: the depth under the
+    keypoint is the top of the object, a fixed height above its grasp point per object (`depth_z`: object name ->
+    grasp point minus keypoint surface (m), measured on demonstrations, `train.perceive_act.depth_z_offsets`; the
+    object is the one the instruction names). At the grasp the head's vertical estimate errs about 4 cm RMS, this
+    one under 1 cm (docs/experiments.md)."""
+
+    def __init__(self, platform, near: str, far: tuple[str, ...] = (), near_m: float = 0.3,
+                 gate_m: float | None = 0.2, spread_max: float | None = None, depth_z: dict[str, float] | None = None,
+                 depth_z_range_m: float = 0.05, device: torch.device | str = "cpu"):
+        self.near, self.far, self.near_m, self.gate_m, self.spread_max = near, tuple(far), near_m, gate_m, spread_max
+        self.depth_z_names = [object_phrase(name) for name in depth_z] if depth_z else None
+        self.depth_z = torch.tensor([*depth_z.values(), float("nan")], device=device) if depth_z else None
+        self.depth_z_range_m = depth_z_range_m
         self.cameras = (near, *self.far)
         eye, axes, tan_half = camera_frames_in_body(platform, self.cameras)
         self.mounts = {c: (eye[i].float().to(device), axes[i].float().to(device), float(tan_half[i]))
                        for i, c in enumerate(self.cameras)}
         self.tcp_body = torch.tensor(platform.grasp_point_m, device=device)
 
+    @classmethod
+    def from_config(cls, platform, config: dict, device: torch.device | str = "cpu") -> KeypointGoal | None:
+        """The fusion a composed folder's `config.json` names (None: no `keypoint_camera`, the head alone)."""
+        if not config.get("keypoint_camera"):
+            return None
+        gate, spread = config.get("keypoint_gate_m", 0.2), config.get("keypoint_spread_max")
+        return cls(platform, config["keypoint_camera"], tuple(config.get("far_keypoint_cameras") or ()),
+                   float(config["keypoint_range_m"]), None if gate is None else float(gate),
+                   None if spread is None else float(spread), config.get("depth_z"),
+                   float(config.get("depth_z_range_m", 0.05)), device)
+
     def seen(self, camera: str, images: torch.Tensor, keypoints: torch.Tensor, state: torch.Tensor
              ) -> tuple[torch.Tensor, torch.Tensor]:
         return keypoint_goal_offset(images, keypoints, state, *self.mounts[camera], self.tcp_body)
 
+    def _concentrated(self, camera: str, spreads: dict[str, torch.Tensor] | None, like: torch.Tensor) -> torch.Tensor:
+        if self.spread_max is None:
+            return torch.ones_like(like, dtype=torch.bool)
+        if spreads is None:
+            raise ValueError("a keypoint spread gate needs the encoders' spreads (Trunk.embed(..., spreads={}))")
+        return spreads[camera][:, 0] < self.spread_max
+
     def fuse(self, head: torch.Tensor, images: dict[str, torch.Tensor], keypoints: dict[str, torch.Tensor],
-             state: torch.Tensor) -> torch.Tensor:
-        """`(N, 2)` the goal's horizontal offset from the head's `goal_pos_body` `(N, 3)` and the cameras."""
-        near = head.norm(dim=-1) < self.near_m
+             state: torch.Tensor, spreads: dict[str, torch.Tensor] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """`(N, 3)` the goal's offset (as `goal_pos_body`) from the head's `(N, 3)` and the cameras, and `(N,)`
+        whether a camera saw the goal (the horizontal offset is a keypoint's, not the head's). `images`: the
+        network's inputs (the cameras, and the instruction's word ids where `depth_z` is used)."""
         offset, depth = self.seen(self.near, images[self.near], keypoints[self.near], state)
-        out = torch.where((near & (depth > 0))[:, None], offset[:, :2], head[:, :2])
-        done = near.clone()
+        near = head.norm(dim=-1) < self.near_m
+        if self.spread_max is not None:  # farther too, where the near camera's keypoint is sure of itself
+            near |= self._concentrated(self.near, spreads, depth)
+        done = near & (depth > 0)
+        out = torch.where(done[:, None], offset[:, :2], head[:, :2])
+        z = head[:, 2]
+        if self.depth_z is not None:
+            if "instruction" not in images:
+                raise ValueError("the vertical offset from depth needs the instruction (the object it names)")
+            named = named_phrase(images["instruction"], self.depth_z_names)
+            seen_z = offset[:, 2] + self.depth_z[named]  # index -1: NaN, no object named
+            close = done & ~seen_z.isnan() & (torch.cat([out, seen_z[:, None]], -1).norm(dim=-1) < self.depth_z_range_m)
+            z = torch.where(close, seen_z, z)
         for camera in self.far:
             offset, depth = self.seen(camera, images[camera], keypoints[camera], state)
-            agree = ~done & (depth > 0) & ((offset[:, :2] - head[:, :2]).norm(dim=-1) < self.gate_m)
-            out = torch.where(agree[:, None], offset[:, :2], out)
-            done |= agree
-        return out
+            sees = ~done & (depth > 0) & self._concentrated(camera, spreads, depth)
+            if self.gate_m is not None:
+                sees &= (offset[:, :2] - head[:, :2]).norm(dim=-1) < self.gate_m
+            out = torch.where(sees[:, None], offset[:, :2], out)
+            done |= sees
+        return torch.cat([out, z[:, None]], -1), done
 
 
 class StaticGoalFilter:
     """An exponential average of the goal's estimates in the env frame, per episode: until the object is grasped the
     goal does not move, so frame-to-frame errors of the estimate are noise about a fixed point, not motion. `rate`:
-    the weight of each new estimate (1: no filtering). Uses the airframe's position and attitude from the proprio
-    state (differences within an episode only); a grasped object (by the estimate) passes through and restarts it."""
+    the weight of each new estimate (1: no filtering). As a goal memory, it is told which estimates are sightings
+    (`KeypointGoal.fuse`): only they update it, and between them it holds the last one (dead reckoning by the
+    airframe's own motion) instead of passing the head's estimate on. Uses the airframe's position and attitude from
+    the proprio state (differences within an episode only); a grasped object (by the estimate) passes through and
+    clears it."""
 
     def __init__(self, rate: float, tcp_body: torch.Tensor):
         if not 0.0 < rate <= 1.0:
             raise ValueError(f"the goal filter's rate must be in (0, 1], got {rate}")
         self.rate, self.tcp_body = rate, tcp_body
         self.goal: torch.Tensor | None = None  # (N, 3) the env-frame estimate
-        self.fresh: torch.Tensor | None = None  # (N,) no estimate yet this episode
+        self.known: torch.Tensor | None = None  # (N,) an estimate is held this episode
 
     def reset(self, env_idx: torch.Tensor) -> None:
-        if self.fresh is not None:
-            self.fresh[env_idx.to(self.fresh.device)] = True
+        if self.known is not None:
+            self.known[env_idx.to(self.known.device)] = False
 
-    def __call__(self, offset: torch.Tensor, state: torch.Tensor, grasped: torch.Tensor) -> torch.Tensor:
-        """`(N, 3)` the filtered heading-frame offset (as `goal_pos_body`) from this step's estimate `offset`."""
+    def __call__(self, offset: torch.Tensor, state: torch.Tensor, grasped: torch.Tensor,
+                 sighted: torch.Tensor | None = None) -> torch.Tensor:
+        """`(N, 3)` the filtered heading-frame offset (as `goal_pos_body`) from this step's estimate `offset`;
+        `sighted` `(N,)`: which estimates update it (None: all)."""
         n = len(offset)
-        if self.fresh is None or len(self.fresh) != n:
-            self.fresh = torch.ones(n, dtype=torch.bool, device=offset.device)
+        if self.known is None or len(self.known) != n:
+            self.known = torch.zeros(n, dtype=torch.bool, device=offset.device)
             self.goal = offset.new_zeros(n, 3)
         tcp = state[:, _STATE["position"]] + (body_rotation(state) @ self.tcp_body[:, None])[..., 0]
         yaw = yaw_of(state)
         world = tcp + heading_frame(offset, -yaw)  # the heading frame turned back by the yaw: the env frame
-        restart = self.fresh | grasped
-        self.goal = torch.where(restart[:, None], world, self.goal + self.rate * (world - self.goal))
-        self.fresh = grasped.clone()  # after a grasp (or before any estimate) the next estimate starts afresh
-        return heading_frame(self.goal - tcp, yaw)
+        update = ~grasped if sighted is None else sighted & ~grasped
+        blended = torch.where(self.known[:, None], self.goal + self.rate * (world - self.goal), world)
+        self.goal = torch.where(update[:, None], blended, self.goal)
+        self.known = (self.known | update) & ~grasped  # after a grasp the next sighting starts afresh
+        return torch.where(self.known[:, None], heading_frame(self.goal - tcp, yaw), offset)
 
 
 class _EstimatedTaskState:
@@ -175,11 +227,12 @@ class PerceiveActPolicy:
         self.flags = torch.tensor([f in FLAG_FIELDS for f in self.fields for _ in range(sizes[f])], device=device)
         self.goal_column = sum(sizes[f] for f in self.fields[:self.fields.index("goal_pos_body")]) \
             if "goal_pos_body" in self.fields else None
-        near = config.get("keypoint_camera")  # the goal's offset from the cameras' goal keypoints (`KeypointGoal`)
-        self.keypoints = None if not near else KeypointGoal(
-            env.platform, near, tuple(config.get("far_keypoint_cameras") or ()), float(config["keypoint_range_m"]),
-            float(config.get("keypoint_gate_m", 0.2)), device)
-        rate = config.get("goal_filter_rate")  # a static-goal filter on goal_pos_body (`StaticGoalFilter`)
+        # the goal's offset from the cameras' goal keypoints
+        self.keypoints = KeypointGoal.from_config(env.platform, config, device)
+        # a static-goal filter on goal_pos_body (`StaticGoalFilter`); as a memory, updated by the keypoints' sightings
+        self.memory = bool(config.get("goal_memory")) and self.keypoints is not None
+        rate = config.get("goal_filter_rate")
+        rate = 1.0 if rate is None and self.memory else rate
         self.filter = None if rate is None or "goal_pos_body" not in self.fields else StaticGoalFilter(
             float(rate), torch.tensor(env.platform.grasp_point_m, device=device))
         self.grasp_column = sum(sizes[f] for f in self.fields[:self.fields.index("is_grasp_confirmed")]) \
@@ -209,10 +262,13 @@ class PerceiveActPolicy:
 
     @classmethod
     def training_starts(cls, checkpoint: str) -> TrainingStarts:
-        """The starts either network trained on."""
+        """The starts either network trained on, and those of the demonstrations its calibration was measured on."""
         perception, controller = cls._parts(checkpoint)
         starts = read_starts(perception)
         starts.add(read_starts(controller))
+        folder = read_perceive_act(checkpoint)[0]
+        if (folder / STARTS_FILE).is_file():
+            starts.add(read_starts(folder))
         return starts
 
     def reset(self, env_idx: torch.Tensor) -> None:
@@ -226,16 +282,18 @@ class PerceiveActPolicy:
         """`(N, K)` the task state the controller reads: the perception's estimates of `fields`, zeros elsewhere."""
         actor = self.perception.actor
         inputs, keypoints = self.perception.observe(obs), {}
-        values = actor.aux(actor.embed(inputs, keypoints if self.keypoints else None)) * self.std + self.mean
+        spreads = {} if self.keypoints is not None and self.keypoints.spread_max is not None else None
+        values = actor.aux(actor.embed(inputs, keypoints if self.keypoints else None, spreads)) * self.std + self.mean
         values = torch.where(self.flags, (values > 0.5).to(values.dtype), values)  # a new tensor: written below
         state = obs["agent"]["state"].to(values.device).float()
         goal = slice(self.goal_column, self.goal_column + 3) if self.goal_column is not None else None
+        sighted = None
         if self.keypoints is not None:
-            values[:, goal.start:goal.start + 2] = self.keypoints.fuse(values[:, goal], inputs, keypoints, state)
+            values[:, goal], sighted = self.keypoints.fuse(values[:, goal], inputs, keypoints, state, spreads)
         if self.filter is not None:
             grasped = values[:, self.grasp_column] > 0.5 if self.grasp_column is not None else \
                 torch.zeros(len(values), dtype=torch.bool, device=values.device)
-            values[:, goal] = self.filter(values[:, goal], state, grasped)
+            values[:, goal] = self.filter(values[:, goal], state, grasped, sighted if self.memory else None)
         out = values.new_zeros(len(values), self.width)
         out[:, self.columns] = values
         return out

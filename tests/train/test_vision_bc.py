@@ -311,9 +311,20 @@ def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(c
                                    task_fields=("goal_pos_body", "is_grasp_confirmed"), ego_fields=("height",),
                                    action_frame="heading"))
     out = tmp_path / "pa"
-    proc = aerobench_here("train", "perceive-act", "--perception", str(perception), "--controller", str(controller),
-                          "--keypoint-camera", "drone_hand", "--out", str(out))
+    compose = ("train", "perceive-act", "--perception", str(perception), "--controller", str(controller),
+               "--keypoint-camera", "drone_hand", "--far-keypoint-cameras", "drone_front,drone_own",
+               "--keypoint-gate-m", "0", "--keypoint-spread-max", "0.3", "--goal-memory", "--depth-z")
+    proc = aerobench_here(*compose, "--out", str(tmp_path / "unmeasured"))  # no fixture frame is within 5 cm
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "--depth-z cannot be measured there" in proc.stderr
+    monkeypatch.setattr("aerobench.train.perceive_act.DEPTH_Z_WITHIN_M", 100.0)  # every frame counts as near
+    proc = aerobench_here(*compose, "--out", str(out))
     assert proc.returncode == 0, proc.stderr
+    composed = json.loads((out / "config.json").read_text())
+    assert composed["keypoint_gate_m"] is None and composed["goal_memory"] and composed["keypoint_spread_max"] == 0.3
+    assert set(composed["depth_z"]) == {"sugar_box", "bowl"}  # the fixture's objects, on the perception's own data:
+    # no starts added
+    assert not (out / "starts.json").exists()
     assert PerceiveActPolicy.input_tier(str(out)) == "vision"
     assert PerceiveActPolicy.needs_images(str(out))
     older = tmp_path / "older_perception"  # a checkpoint saved before the head's scale was: recomputed from its data
@@ -349,10 +360,14 @@ def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(c
                           "--out", str(tmp_path / "refused"))
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
     assert "reads progress, which the perception does not estimate" in proc.stderr
+    proc = aerobench_here("train", "perceive-act", "--perception", str(perception), "--controller", str(controller),
+                          "--goal-memory", "--out", str(tmp_path / "refused"))
+    assert proc.returncode == 2 and "give --keypoint-camera too" in proc.stderr
     import perceive_probe  # the bench that measures the estimate against the task state, per distance
 
     report = perceive_probe.main(["--checkpoint", str(out), "--dataset", str(camera_dataset)])
     assert report["head"] and report["fused"] and set(report["keypoint"]) == {"drone_front", "drone_hand", "drone_own"}
+    assert report["spread_max"] == 0.3 and set(report["keypoint_concentrated"]) == set(report["keypoint"])
     assert all(r["frames"] > 0 and r["rms_m"] >= 0 for r in report["head"])
 
 
