@@ -1,7 +1,7 @@
 """How well a `perceive_act` policy's perception says where the goal is, on demonstrations it never saw
 (docs/experiments.md, "Perceive, then act"): the auxiliary head's estimate of `goal_pos_body` beside each airframe
 camera's goal keypoint back-projected through the depth under it (`policies.perceive_act.keypoint_goal_offset`),
-as the horizontal error (RMS and median, metres) by the distance to the goal; the same for the keypoints whose
+as the horizontal and the vertical error (RMS and median, metres) by the distance to the goal; the same for the keypoints whose
 attention is concentrated (spread under `--spread-max`: where the camera is sure it sees the goal) with how many
 frames they cover, and for what the policy acts on (`fused`, without its goal memory).
 
@@ -30,7 +30,7 @@ from aerobench.policies.learned import load_actor  # noqa: E402
 from aerobench.policies.perceive_act import PERCEPTION, KeypointGoal, keypoint_goal_offset, read_perceive_act  # noqa: E402,E501
 from aerobench.train.perceive_act import perception_frames  # noqa: E402
 
-DISTANCE_BINS_M = (0.1, 0.2, 0.3, 0.6, 1.0)
+DISTANCE_BINS_M = (0.05, 0.1, 0.2, 0.3, 0.6, 1.0)  # 0.05: where the depth gives the height (`--depth-z`)
 
 
 def _errors(estimate: torch.Tensor, truth: torch.Tensor, distance: torch.Tensor, valid: torch.Tensor) -> list[dict]:
@@ -39,10 +39,22 @@ def _errors(estimate: torch.Tensor, truth: torch.Tensor, distance: torch.Tensor,
         mask = valid & (distance >= low) & (distance < high)
         if mask.any():
             error = (estimate[mask, :2] - truth[mask, :2]).norm(dim=-1)
+            vertical = (estimate[mask, 2] - truth[mask, 2]).abs()
             rows.append({"from": low, "to": high, "frames": int(mask.sum()),
-                         "rms_m": float(error.pow(2).mean().sqrt()), "median_m": float(error.median())})
+                         "rms_m": float(error.pow(2).mean().sqrt()), "median_m": float(error.median()),
+                         "vertical_rms_m": float(vertical.pow(2).mean().sqrt()),
+                         "vertical_median_m": float(vertical.median())})
         low = high
     return rows
+
+
+def _auroc(score: torch.Tensor, positive: torch.Tensor) -> float | None:
+    """P(a positive frame scores above a negative one), ties half (the Mann-Whitney statistic); None without both."""
+    pos, neg = score[positive], score[~positive]
+    if not len(pos) or not len(neg):
+        return None
+    above = (pos[:, None] > neg[None, :]).float().mean() + 0.5 * (pos[:, None] == neg[None, :]).float().mean()
+    return round(float(above), 3)
 
 
 def main(argv=None) -> dict:
@@ -70,7 +82,8 @@ def main(argv=None) -> dict:
     tcp = torch.tensor(platform.grasp_point_m)
     fusion = KeypointGoal.from_config(platform, config)
     spread_max = args.spread_max or config.get("keypoint_spread_max") or 0.3
-    head, seen, sure, fused = [], {c: ([], []) for c in cameras}, {c: [] for c in cameras}, []
+    head, seen, fused = [], {c: ([], []) for c in cameras}, []
+    sure, spread = {c: [] for c in cameras}, {c: [] for c in cameras}
     states = normalizer.state(data["state"])
     with torch.no_grad():
         for i in range(0, len(states), args.batch):
@@ -89,6 +102,7 @@ def main(argv=None) -> dict:
                 seen[c][0].append(offset)
                 seen[c][1].append(depth)
                 sure[c].append(spreads[c][:, 0] < spread_max)
+                spread[c].append(spreads[c][:, 0])
     every = torch.ones(len(truth), dtype=torch.bool)
     report = {"checkpoint": str(folder), "dataset": args.dataset, "frames": len(truth),
               "head": _errors(torch.cat(head), truth, distance, every),
@@ -102,6 +116,8 @@ def main(argv=None) -> dict:
         visible = dict(zip(train["cameras"], data["goal_visible"].unbind(1)))
         report["keypoint_in_view"] = {c: _errors(torch.cat(o), truth, distance, (torch.cat(d) > 0) & visible[c])
                                       for c, (o, d) in seen.items()}
+        # how well a concentrated attention says the goal is in view (1: always, 0.5: no better than chance)
+        report["spread_auroc_goal_in_view"] = {c: _auroc(-torch.cat(spread[c]), visible[c]) for c in cameras}
     text = json.dumps(report, indent=2)
     if args.out:
         Path(args.out).write_text(text + "\n")

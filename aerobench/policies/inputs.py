@@ -151,6 +151,17 @@ class InputSpec:
         first = torch.cummax(torch.where(new_episode, t, torch.zeros_like(t)), 0).values  # each row's episode start
         return torch.cat([frames[torch.maximum(t - k, first)] for k in range(self.history)], dim=-1)
 
+    def task_columns(self, name: str, width: int) -> torch.Tensor:
+        """The columns of task field `name` in every frame of a `width`-wide input (`history` frames, the task fields
+        last in each)."""
+        sizes = dict(task_state_fields(with_arm=True))  # a field's size is the same on either platform
+        if name not in self.task_fields:
+            raise ValueError(f"this policy does not read {name}")
+        frame = width // self.history
+        start = frame - sum(sizes[f] for f in self.task_fields) + \
+            sum(sizes[f] for f in self.task_fields[:self.task_fields.index(name)])
+        return torch.tensor([k * frame + start + i for k in range(self.history) for i in range(sizes[name])])
+
     def as_dict(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 

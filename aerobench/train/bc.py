@@ -145,6 +145,10 @@ class BCConfig:
                                         "training time only: the policy never reads them, so its tier is unchanged), "
                                         "e.g. goal_pos_body: where the marked goal is, seen by a vision policy"})
     aux_weight: float = field(default=1.0, metadata={"help": "weight of the auxiliary loss (--aux-fields)"})
+    goal_noise_m: float = field(default=0.0, metadata={"help": "train on goal_pos_body read off by an offset drawn per "
+                                "frame, N(0, sigma^2) per axis (m), the same in its history: a controller for a "
+                                "perception's estimate (aerobench train perceive-act), whose error is a bias, not "
+                                "jitter; 0: off"})
     goal_keypoint_weight: float = field(default=0.0, metadata={"help": "train each camera's first keypoint to sit on "
                                         "the skill's goal point in its image (train.goal_pixels; a training-time "
                                         "label, needs --encoder-head keypoints), with this weight; 0: off"})
@@ -190,6 +194,9 @@ class BCConfig:
         bad = [f for f in self.aux_fields if f not in ALL_TASK_FIELDS]
         if bad:
             raise ValueError(f"--aux-fields must name task state fields ({', '.join(ALL_TASK_FIELDS)}), got {bad}")
+        if not self.goal_noise_m >= 0 or (self.goal_noise_m and "goal_pos_body" not in (self.task_fields or ())):
+            raise ValueError(f"--goal-noise-m must be >= 0 and needs goal_pos_body in --task-fields, got "
+                             f"{self.goal_noise_m}")
         if self.aux_weight < 0:
             raise ValueError(f"--aux-weight must not be negative, got {self.aux_weight}")
         if self.goal_keypoint_weight < 0 or (self.goal_keypoint_weight > 0 and (
@@ -278,6 +285,19 @@ def checkpoint_config(checkpoint: Path, **overrides) -> BCConfig:
     to feed it, as the probes and the release calibration do)."""
     train = read_config(Path(checkpoint))["train"]
     return BCConfig(**{**{k: v for k, v in train.items() if k in BCConfig.__dataclass_fields__}, **overrides})
+
+
+def goal_noise(sigma_m: float, inputs: InputSpec, width: int):
+    """`rows -> (len(rows), width)`: an offset of goal_pos_body per row, N(0, sigma_m^2) per axis, in every history
+    frame (`BCConfig.goal_noise_m`)."""
+    columns = inputs.task_columns("goal_pos_body", width)
+
+    def draw(rows: torch.Tensor) -> torch.Tensor:
+        noise = torch.zeros(len(rows), width)
+        offset = torch.randn(len(rows), 3) * sigma_m
+        noise[:, columns] = offset.repeat(1, inputs.history)
+        return noise
+    return draw
 
 
 def load_demos(config: BCConfig) -> tuple[dict[str, torch.Tensor], dict]:
@@ -497,6 +517,7 @@ def _train_bc(config: BCConfig) -> Path:
     # the head's targets in their own units, for whatever reads the head (`policies.perceive_act`)
     aux_scale = {"aux_mean": aux_mean.tolist(), "aux_std": aux_std.tolist()} if config.aux_fields else {}
 
+    noisy = None if not config.goal_noise_m else goal_noise(config.goal_noise_m, inputs, data["state"].shape[1])
     seed_everything(config.seed)
     actor = make_actor(model)
     optimizer = torch.optim.Adam(actor.parameters(), lr=config.learning_rate)
@@ -527,7 +548,7 @@ def _train_bc(config: BCConfig) -> Path:
         idx = torch.randint(n, (min(config.batch_size, n),), generator=generator)
         keypoints = {} if config.goal_keypoint_weight > 0 else None
         offsets = [] if keypoints is not None else None  # each camera's shift, for the goal keypoint labels
-        batch = {"state": states[idx], **{cam: random_shift(as_network_input(data[cam][idx]), config.shift, generator,
+        batch = {"state": states[idx] if noisy is None else normalizer.state(data["state"][idx] + noisy(idx)), **{cam: random_shift(as_network_input(data[cam][idx]), config.shift, generator,
                                                             offsets) for cam in cameras}}
         if inputs.instruction:
             batch["instruction"] = data["instruction"][idx]

@@ -224,6 +224,30 @@ def test_bc_trains_within_a_data_budget(state_dataset, tmp_path):
         BCConfig(dataset=str(state_dataset), out=str(tmp_path), max_transitions=0)
 
 
+def test_goal_noise_offsets_goal_pos_body_alike_in_every_history_frame(state_dataset, tmp_path):
+    """`--goal-noise-m`: one offset per training frame on goal_pos_body and nothing else, the same in its history (a
+    perception's error is a bias); refused without goal_pos_body among the inputs."""
+    from aerobench.envs.observations import task_state_fields
+    from aerobench.train.bc import goal_noise
+
+    spec = InputSpec(state_fields=("linear_velocity",), ego_fields=("height",), history=3,
+                     task_fields=("is_grasp_confirmed", "goal_pos_body", "heading_error"))
+    sizes = dict(task_state_fields(with_arm=True))
+    frame = 3 + 1 + sizes["is_grasp_confirmed"] + 3 + sizes["heading_error"]
+    start = 3 + 1 + sizes["is_grasp_confirmed"]
+    torch.manual_seed(0)
+    noise = goal_noise(0.02, spec, 3 * frame)(torch.arange(4000))
+    blocks = [noise[:, k * frame + start:k * frame + start + 3] for k in range(3)]
+    assert torch.equal(blocks[0], blocks[1]) and torch.equal(blocks[0], blocks[2])
+    assert torch.allclose(blocks[0].std(0), torch.full((3,), 0.02), rtol=0.1)
+    assert (noise != 0).sum() == 3 * 3 * 4000  # nothing else is touched
+    run = train_bc(BCConfig(dataset=str(state_dataset), out=str(tmp_path / "noisy"), steps=2, hidden=(8,), progress=False,
+                            outcomes=("S", "T"), task_fields=("goal_pos_body",), history=2, goal_noise_m=0.02))
+    assert json.loads((run / "config.json").read_text())["train"]["goal_noise_m"] == 0.02
+    with pytest.raises(ValueError, match="needs goal_pos_body in --task-fields"):
+        BCConfig(dataset=str(state_dataset), out=str(tmp_path), task_fields=("progress",), goal_noise_m=0.01)
+
+
 def test_bc_trains_on_the_chosen_object_classes(state_dataset, tmp_path):
     rows = read_jsonl(state_dataset / "meta" / "aerobench_episodes.jsonl")
     both = ("S", "T")

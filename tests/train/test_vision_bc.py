@@ -368,7 +368,8 @@ def test_perceive_act_acts_on_the_camera_networks_estimates_in_the_vision_tier(c
     report = perceive_probe.main(["--checkpoint", str(out), "--dataset", str(camera_dataset)])
     assert report["head"] and report["fused"] and set(report["keypoint"]) == {"drone_front", "drone_hand", "drone_own"}
     assert report["spread_max"] == 0.3 and set(report["keypoint_concentrated"]) == set(report["keypoint"])
-    assert all(r["frames"] > 0 and r["rms_m"] >= 0 for r in report["head"])
+    assert all(a is None or 0 <= a <= 1 for a in report["spread_auroc_goal_in_view"].values())
+    assert all(r["frames"] > 0 and r["rms_m"] >= 0 and r["vertical_rms_m"] >= 0 for r in report["head"])
 
 
 def test_perception_noise_offsets_what_the_policy_reads_and_marks_its_results(camera_dataset, tmp_path):
