@@ -107,8 +107,8 @@ def depth_z_offsets(perception: Path, dataset: str, camera: str, frames: int, ba
     """Per object (by name), the median of its grasp point's height minus the surface under `camera`'s goal
     keypoint, over the frames of `dataset` within `DEPTH_Z_WITHIN_M` of the grasp where the camera has depth there
     (its keypoint's attention is often diffuse there, the object filling the view: not gated on it), in the object's
-    leading episodes within `frames` frames. On
-    held-out Pick demonstrations it varies 2-9 mm within an object and 1-9 cm between objects (docs/experiments.md)."""
+    leading episodes within `frames` frames. On held-out Pick demonstrations it varies 2-9 mm within an object and
+    1-9 cm between objects (docs/experiments.md)."""
     _, actor, normalizer = load_actor(perception)
     cameras = read_config(perception)["model"]["cameras"]
     out = {}
