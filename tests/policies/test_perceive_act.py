@@ -36,6 +36,25 @@ def _pick_states(n: int, generator: torch.Generator) -> tuple[torch.Tensor, torc
     return state, task
 
 
+def _goal_seen_by_own_camera(fusion: KeypointGoal):
+    """Eight Pick states whose goal is ahead and below, in the downward-forward camera's view, with that camera's goal
+    keypoint on it and the goal's depth under it: (state, goal, keypoints, images)."""
+    state, task = _pick_states(8, torch.Generator().manual_seed(1))
+    goal = torch.tensor([0.6, 0.1, -0.3]).expand(8, 3)
+    task = task.clone()
+    task[:, 8:11] = goal
+    yaw = torch.atan2(state[:, 4], state[:, 3])  # the heading of the body x axis
+    cy, sy = yaw.cos(), yaw.sin()
+    task[:, 5:8] = torch.stack([cy * goal[:, 0] - sy * goal[:, 1], sy * goal[:, 0] + cy * goal[:, 1], goal[:, 2]], -1)
+    xy, visible, depth = goal_pixels(state, task, FIELDS, get_platform("gripper"), ("drone_own",))
+    assert visible.all()
+    keypoints = {c: torch.zeros(8, 8) for c in fusion.cameras}
+    keypoints["drone_own"][:, 0], keypoints["drone_own"][:, 4] = xy[:, 0, 0], xy[:, 0, 1]
+    images = {c: torch.zeros(8, IMAGE_CHANNELS, 64, 64) for c in fusion.cameras}
+    images["drone_own"][:, -1] = (depth[:, 0] / (UINT8_MAX * DEPTH_STEP_M))[:, None, None]
+    return state, goal, keypoints, images
+
+
 def test_the_keypoint_and_its_depth_give_back_the_goal_offset_the_label_was_projected_from():
     platform = get_platform("gripper")
     state, task = _pick_states(64, torch.Generator().manual_seed(0))
@@ -57,21 +76,8 @@ def test_the_keypoint_and_its_depth_give_back_the_goal_offset_the_label_was_proj
 
 
 def test_a_far_camera_is_believed_only_where_it_agrees_with_the_head():
-    platform = get_platform("gripper")
-    state, task = _pick_states(8, torch.Generator().manual_seed(1))
-    fusion = KeypointGoal(platform, "drone_hand", far=("drone_own",), near_m=0.3, gate_m=0.2)
-    goal = torch.tensor([0.6, 0.1, -0.3]).expand(8, 3)  # ahead and below, in the downward-forward camera's view
-    task = task.clone()
-    task[:, 8:11] = goal
-    yaw = torch.atan2(state[:, 4], state[:, 3])  # the heading of the body x axis
-    cy, sy = yaw.cos(), yaw.sin()
-    task[:, 5:8] = torch.stack([cy * goal[:, 0] - sy * goal[:, 1], sy * goal[:, 0] + cy * goal[:, 1], goal[:, 2]], -1)
-    xy, visible, depth = goal_pixels(state, task, FIELDS, platform, ("drone_own",))
-    assert visible.all()
-    keypoints = {c: torch.zeros(8, 8) for c in fusion.cameras}
-    keypoints["drone_own"][:, 0], keypoints["drone_own"][:, 4] = xy[:, 0, 0], xy[:, 0, 1]
-    images = {c: torch.zeros(8, IMAGE_CHANNELS, 64, 64) for c in fusion.cameras}
-    images["drone_own"][:, -1] = (depth[:, 0] / (UINT8_MAX * DEPTH_STEP_M))[:, None, None]
+    fusion = KeypointGoal(get_platform("gripper"), "drone_hand", far=("drone_own",), near_m=0.3, gate_m=0.2)
+    state, goal, keypoints, images = _goal_seen_by_own_camera(fusion)
     agreeing = goal + torch.tensor([0.1, -0.1, 0.0])  # the head 14 cm off: within the gate, the camera is believed
     assert (fusion.fuse(agreeing, images, keypoints, state)[0][:, :2] - goal[:, :2]).abs().max() < 0.02
     disagreeing = goal + torch.tensor([0.3, 0.0, 0.0])  # 30 cm off: the camera sees something else; the head stays
@@ -146,21 +152,9 @@ def test_the_spatial_softmax_spread_says_how_sure_each_keypoint_is():
 
 
 def test_a_camera_whose_goal_keypoint_is_concentrated_is_believed_wherever_the_head_puts_the_goal():
-    platform = get_platform("gripper")
-    state, task = _pick_states(8, torch.Generator().manual_seed(1))
-    fusion = KeypointGoal(platform, "drone_hand", far=("drone_own",), near_m=0.3, gate_m=None, spread_max=0.3)
-    goal = torch.tensor([0.6, 0.1, -0.3]).expand(8, 3)
-    task = task.clone()
-    task[:, 8:11] = goal
-    yaw = torch.atan2(state[:, 4], state[:, 3])
-    cy, sy = yaw.cos(), yaw.sin()
-    task[:, 5:8] = torch.stack([cy * goal[:, 0] - sy * goal[:, 1], sy * goal[:, 0] + cy * goal[:, 1], goal[:, 2]], -1)
-    xy, visible, depth = goal_pixels(state, task, FIELDS, platform, ("drone_own",))
-    assert visible.all()
-    keypoints = {c: torch.zeros(8, 8) for c in fusion.cameras}
-    keypoints["drone_own"][:, 0], keypoints["drone_own"][:, 4] = xy[:, 0, 0], xy[:, 0, 1]
-    images = {c: torch.zeros(8, IMAGE_CHANNELS, 64, 64) for c in fusion.cameras}
-    images["drone_own"][:, -1] = (depth[:, 0] / (UINT8_MAX * DEPTH_STEP_M))[:, None, None]
+    fusion = KeypointGoal(get_platform("gripper"), "drone_hand", far=("drone_own",), near_m=0.3, gate_m=None,
+                          spread_max=0.3)
+    state, goal, keypoints, images = _goal_seen_by_own_camera(fusion)
     images["drone_hand"][:, -1] = 0.5  # the hand camera sees something, diffusely
     spreads = {"drone_hand": torch.full((8, 4), 0.7), "drone_own": torch.full((8, 4), 0.7)}
     spreads["drone_own"][:4, 0] = 0.1  # the own camera's goal map is sharp in the first four
